@@ -1,0 +1,240 @@
+//! Building IR: type inference for each op, hash-consing (CSE) and, when
+//! enabled, constant folding and algebraic simplification at construction.
+//!
+//! The checker builds without folding so `--stats` can show what each pass
+//! removes; the adjoint and simplify passes build with folding on.
+
+use crate::eval;
+use crate::ir::*;
+use num_complex::Complex64 as C64;
+use std::collections::HashMap;
+
+/// Appends instructions to a [`Function`].
+pub struct Builder {
+    /// The function being built.
+    pub func: Function,
+    fold: bool,
+    memo: HashMap<Inst, Value>,
+}
+
+impl Builder {
+    /// Builds into `func` (which may already hold instructions).
+    /// `fold` turns on CSE, constant folding and algebraic rules.
+    pub fn new(func: Function, fold: bool) -> Self {
+        let mut memo = HashMap::new();
+        if fold {
+            for (i, inst) in func.insts.iter().enumerate() {
+                memo.entry(*inst).or_insert(Value(i as u32));
+            }
+        }
+        Builder { func, fold, memo }
+    }
+
+    /// Type of `v`.
+    pub fn ty(&self, v: Value) -> Ty {
+        self.func.ty(v)
+    }
+
+    /// The result type of `op`.
+    pub fn infer(&self, op: &Op) -> Ty {
+        let t = |v: Value| self.func.ty(v);
+        match *op {
+            Op::Const(_) => Ty::REAL,
+            Op::ConstComplex(..) => Ty::COMPLEX,
+            Op::Param(_) => Ty::REAL,
+            Op::Input(i) => self.func.inputs[i as usize].ty,
+            Op::GridCoord(g) => Ty { elem: Elem::Real, shape: Shape::Grid(g) },
+            Op::Unary(u, a) => match u {
+                UnOp::Abs | UnOp::Re | UnOp::Im | UnOp::Abs2 | UnOp::Sign => t(a).with_elem(Elem::Real),
+                UnOp::Cis | UnOp::ToComplex => t(a).with_elem(Elem::Complex),
+                _ => t(a),
+            },
+            Op::Binary(b, x, _) => match b {
+                BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne => t(x).with_elem(Elem::Bool),
+                BinOp::Complex => t(x).with_elem(Elem::Complex),
+                _ => t(x),
+            },
+            Op::PowConst(a, _) => t(a),
+            Op::Select(_, a, _) => t(a),
+            Op::Broadcast(a, g) => Ty { elem: t(a).elem, shape: Shape::Grid(g) },
+            Op::Reduce(_, a) => Ty { elem: t(a).elem, shape: Shape::Scalar },
+        }
+    }
+
+    /// Appends `op` as is (CSE only when folding is on).
+    pub fn push(&mut self, op: Op) -> Value {
+        let inst = Inst { op, ty: self.infer(&op) };
+        if self.fold {
+            if let Some(v) = self.memo.get(&inst) {
+                return *v;
+            }
+        }
+        let v = Value(self.func.insts.len() as u32);
+        self.func.insts.push(inst);
+        if self.fold {
+            self.memo.insert(inst, v);
+        }
+        v
+    }
+
+    /// The scalar constant behind `v`, looking through broadcasts.
+    pub fn const_of(&self, v: Value) -> Option<C64> {
+        match self.func.insts[v.index()].op {
+            Op::Const(b) => Some(C64::new(f64::from_bits(b), 0.0)),
+            Op::ConstComplex(r, i) => Some(C64::new(f64::from_bits(r), f64::from_bits(i))),
+            Op::Broadcast(a, _) => self.const_of(a),
+            _ => None,
+        }
+    }
+
+    fn is_const(&self, v: Value, x: f64) -> bool {
+        self.const_of(v) == Some(C64::new(x, 0.0))
+    }
+
+    /// A constant of type `ty` (broadcast if `ty` is an array).
+    pub fn constant(&mut self, x: C64, ty: Ty) -> Value {
+        let scalar = match ty.elem {
+            Elem::Complex => self.push(Op::ConstComplex(x.re.to_bits(), x.im.to_bits())),
+            _ => self.push(Op::Const(x.re.to_bits())),
+        };
+        match ty.shape {
+            Shape::Scalar => scalar,
+            Shape::Grid(g) => self.push(Op::Broadcast(scalar, g)),
+        }
+    }
+
+    /// Zero of type `ty`.
+    pub fn zero(&mut self, ty: Ty) -> Value {
+        self.constant(C64::new(0.0, 0.0), ty)
+    }
+
+    /// A real scalar constant.
+    pub fn real(&mut self, x: f64) -> Value {
+        self.push(Op::constant(x))
+    }
+
+    /// Appends `op`, folding and simplifying when enabled.
+    pub fn emit(&mut self, op: Op) -> Value {
+        if !self.fold {
+            return self.push(op);
+        }
+        let ty = self.infer(&op);
+        // Constant folding of scalar operations.
+        if ty.shape == Shape::Scalar && ty.elem != Elem::Bool {
+            let ops = op.operands();
+            if !ops.is_empty() && !matches!(op, Op::Reduce(..)) {
+                let consts: Vec<_> = ops.iter().map(|v| self.const_of(*v)).collect();
+                if consts.iter().all(Option::is_some) {
+                    let c: Vec<C64> = consts.into_iter().flatten().collect();
+                    let elem_in = self.ty(ops[0]).elem;
+                    let r = match op {
+                        Op::Unary(u, _) => eval::unary(u, c[0], elem_in),
+                        Op::Binary(b, ..) => eval::binary(b, c[0], c[1], elem_in),
+                        Op::PowConst(_, e) => C64::new(eval::pow_const(c[0].re, f64::from_bits(e)), 0.0),
+                        Op::Select(..) => {
+                            if c[0].re != 0.0 {
+                                c[1]
+                            } else {
+                                c[2]
+                            }
+                        }
+                        _ => return self.push(op),
+                    };
+                    return self.constant(r, ty);
+                }
+            }
+        }
+        if let Some(v) = self.simplify(&op, ty) {
+            return v;
+        }
+        self.push(op)
+    }
+
+    /// Algebraic identities; `None` when none applies.
+    fn simplify(&mut self, op: &Op, ty: Ty) -> Option<Value> {
+        let zero = |b: &Self, v| b.is_const(v, 0.0);
+        let one = |b: &Self, v| b.is_const(v, 1.0);
+        match *op {
+            Op::Binary(BinOp::Add, a, b) if zero(self, a) => Some(b),
+            Op::Binary(BinOp::Add, a, b) if zero(self, b) => Some(a),
+            Op::Binary(BinOp::Sub, a, b) if zero(self, b) => Some(a),
+            Op::Binary(BinOp::Sub, a, b) if zero(self, a) => Some(self.emit(Op::Unary(UnOp::Neg, b))),
+            Op::Binary(BinOp::Mul, a, b) if zero(self, a) || zero(self, b) => Some(self.zero(ty)),
+            Op::Binary(BinOp::Mul, a, b) if one(self, a) => Some(b),
+            Op::Binary(BinOp::Mul, a, b) if one(self, b) => Some(a),
+            Op::Binary(BinOp::Div, a, b) if one(self, b) => Some(a),
+            Op::Binary(BinOp::Div, a, _) if zero(self, a) => Some(self.zero(ty)),
+            Op::Unary(UnOp::Neg, a) => match self.func.insts[a.index()].op {
+                Op::Unary(UnOp::Neg, x) => Some(x),
+                _ => None,
+            },
+            Op::Unary(UnOp::Re, a) => match self.func.insts[a.index()].op {
+                Op::Unary(UnOp::ToComplex, x) => Some(x),
+                _ => None,
+            },
+            Op::Unary(UnOp::Im, a) => match self.func.insts[a.index()].op {
+                Op::Unary(UnOp::ToComplex, _) => Some(self.zero(ty)),
+                _ => None,
+            },
+            Op::Unary(UnOp::Conj, a) => match self.func.insts[a.index()].op {
+                Op::Unary(UnOp::ToComplex, _) => Some(a),
+                Op::Unary(UnOp::Conj, x) => Some(x),
+                _ => None,
+            },
+            Op::PowConst(a, c) if f64::from_bits(c) == 1.0 => Some(a),
+            Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => Some(self.constant(C64::new(1.0, 0.0), ty)),
+            Op::Select(_, a, b) if a == b => Some(a),
+            Op::Select(c, a, b) => match self.const_of(c) {
+                Some(k) => Some(if k.re != 0.0 { a } else { b }),
+                None => None,
+            },
+            _ => None,
+        }
+    }
+
+    /// `a + b`.
+    pub fn add(&mut self, a: Value, b: Value) -> Value {
+        self.emit(Op::Binary(BinOp::Add, a, b))
+    }
+    /// `a - b`.
+    pub fn sub(&mut self, a: Value, b: Value) -> Value {
+        self.emit(Op::Binary(BinOp::Sub, a, b))
+    }
+    /// `a * b`.
+    pub fn mul(&mut self, a: Value, b: Value) -> Value {
+        self.emit(Op::Binary(BinOp::Mul, a, b))
+    }
+    /// `a / b`.
+    pub fn div(&mut self, a: Value, b: Value) -> Value {
+        self.emit(Op::Binary(BinOp::Div, a, b))
+    }
+    /// `-a`.
+    pub fn neg(&mut self, a: Value) -> Value {
+        self.emit(Op::Unary(UnOp::Neg, a))
+    }
+    /// A unary op.
+    pub fn unary(&mut self, u: UnOp, a: Value) -> Value {
+        self.emit(Op::Unary(u, a))
+    }
+    /// A binary op.
+    pub fn binary(&mut self, b: BinOp, x: Value, y: Value) -> Value {
+        self.emit(Op::Binary(b, x, y))
+    }
+    /// `a` times the real scalar constant `k`, matched to `a`'s type.
+    pub fn scale(&mut self, a: Value, k: f64) -> Value {
+        let ty = self.ty(a);
+        let c = self.constant(C64::new(k, 0.0), ty);
+        self.mul(a, c)
+    }
+    /// Converts a value to `target`'s elem and shape by `ToComplex` and `Broadcast`.
+    pub fn coerce(&mut self, v: Value, target: Ty) -> Value {
+        let mut v = v;
+        if self.ty(v).elem == Elem::Real && target.elem == Elem::Complex {
+            v = self.emit(Op::Unary(UnOp::ToComplex, v));
+        }
+        if let (Shape::Scalar, Shape::Grid(g)) = (self.ty(v).shape, target.shape) {
+            v = self.emit(Op::Broadcast(v, g));
+        }
+        v
+    }
+}

@@ -1,0 +1,241 @@
+//! The driver: the stage order, and nothing else.
+//!
+//! parse (+ imports) → resolve modules → check + lower each scene →
+//! prune → adjoint → simplify → (codegen, in [`crate::codegen`]).
+
+use crate::check::{collect_modules, Checker};
+use crate::diagnostics::{render_all, Diagnostic};
+use crate::ir::{Function, Precision};
+use crate::passes;
+use crate::source::{FileId, SourceMap};
+use crate::stdlib;
+use crate::syntax::{self, ast};
+use std::collections::HashMap;
+use std::fmt;
+use std::time::{Duration, Instant};
+
+/// Compilation failed; holds every diagnostic and the sources they point into.
+#[derive(Clone, Debug)]
+pub struct CompileError {
+    /// What went wrong.
+    pub diagnostics: Vec<Diagnostic>,
+    /// The sources, for rendering.
+    pub sources: SourceMap,
+}
+
+impl CompileError {
+    /// Renders every diagnostic with ariadne.
+    pub fn render(&self, color: bool) -> String {
+        render_all(&self.diagnostics, &self.sources, color)
+    }
+}
+
+impl fmt::Display for CompileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.render(false))
+    }
+}
+
+impl std::error::Error for CompileError {}
+
+/// A parsed and checked program: its files, AST, and every scene lowered to IR.
+#[derive(Clone, Debug)]
+pub struct Program {
+    /// All source files (the user's first, then imported stdlib files).
+    pub sources: SourceMap,
+    /// The user's file, parsed.
+    pub ast: ast::SourceFileAst,
+    scenes: Vec<Function>,
+}
+
+/// Per-scene compile options.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Options {
+    /// Overrides the scene's `precision` knob.
+    pub precision: Option<Precision>,
+}
+
+/// Instruction counts and times of each stage, for `gwml compile --stats`.
+#[derive(Clone, Debug, Default)]
+pub struct Stats {
+    /// Instructions after checking (every definition in the scene).
+    pub checked_ops: usize,
+    /// After pruning to the requested outputs and gradients.
+    pub pruned_ops: usize,
+    /// After the adjoint pass.
+    pub adjoint_ops: usize,
+    /// After simplification (the IR code generation sees).
+    pub optimized_ops: usize,
+    /// Time per stage, in pipeline order.
+    pub times: Vec<(&'static str, Duration)>,
+}
+
+/// One scene through every IR stage.
+#[derive(Clone, Debug)]
+pub struct ScenePipeline {
+    /// As checked and lowered (all definitions).
+    pub checked: Function,
+    /// Pruned to what outputs need.
+    pub pruned: Function,
+    /// With adjoints appended.
+    pub adjoint: Function,
+    /// Simplified: what the code generator compiles.
+    pub optimized: Function,
+    /// Counts and times.
+    pub stats: Stats,
+}
+
+impl Program {
+    /// Parses `text` (named `name` in diagnostics), loads its imports, checks
+    /// every module and scene, and lowers every scene to IR.
+    pub fn parse(name: &str, text: &str) -> Result<Program, CompileError> {
+        let mut sources = SourceMap::new();
+        let file = sources.add(name, text);
+        let (ast, mut diags) = syntax::parse(text, file);
+        let mut std_asts: Vec<(String, ast::SourceFileAst)> = Vec::new();
+        load_imports(&ast, &mut sources, &mut std_asts, &mut diags);
+        let mut program = Program { sources, ast, scenes: Vec::new() };
+        // Modules: the user's, plus every module of every loaded stdlib file.
+        let mut all_items: Vec<&ast::Item> = Vec::new();
+        for (_, a) in &std_asts {
+            all_items.extend(a.items.iter());
+        }
+        let std_modules = collect_modules(all_items.into_iter(), &mut diags);
+        let user_modules = collect_modules(program.ast.items.iter(), &mut diags);
+        let mut modules: HashMap<String, &ast::ModuleDef> = std_modules;
+        for (k, v) in user_modules {
+            modules.insert(k, v);
+        }
+        let mut scenes = Vec::new();
+        {
+            let mut checker = Checker::new(modules.clone());
+            for m in modules.values() {
+                checker.resolve_module(m);
+            }
+            diags.append(&mut checker.take_diagnostics());
+            let mut seen = HashMap::new();
+            for item in &program.ast.items {
+                if let ast::Item::Scene(s) = item {
+                    if let Some(prev) = seen.insert(s.name.node.clone(), s.name.span) {
+                        diags.push(Diagnostic::error(s.name.span, format!("scene `{}` is defined twice", s.name.node)).with_secondary(prev, "first defined here").with_help("rename one of them"));
+                        continue;
+                    }
+                    match Checker::new(modules.clone()).lower_scene(s) {
+                        Ok(f) => scenes.push(f),
+                        Err(mut d) => diags.append(&mut d),
+                    }
+                }
+            }
+        }
+        if !diags.is_empty() {
+            dedup(&mut diags);
+            return Err(CompileError { diagnostics: diags, sources: program.sources });
+        }
+        program.scenes = scenes;
+        Ok(program)
+    }
+
+    /// Names of the scenes, in source order.
+    pub fn scene_names(&self) -> Vec<&str> {
+        self.scenes.iter().map(|s| s.name.as_str()).collect()
+    }
+
+    /// The checked IR of scene `name`, or a description of what exists.
+    pub fn scene_ir(&self, name: Option<&str>) -> Result<&Function, String> {
+        match name {
+            Some(n) => self.scenes.iter().find(|s| s.name == n).ok_or_else(|| {
+                let names = self.scene_names();
+                match crate::diagnostics::did_you_mean(n, names.iter().copied()) {
+                    Some(s) => format!("no scene `{n}`; did you mean `{s}`?"),
+                    None => format!("no scene `{n}`; scenes: {}", if names.is_empty() { "(none)".into() } else { names.join(", ") }),
+                }
+            }),
+            None => match self.scenes.as_slice() {
+                [one] => Ok(one),
+                [] => Err("the file defines no scene; add `scene NAME { ... }`".into()),
+                many => Err(format!("the file defines {} scenes ({}); choose one with --scene", many.len(), many.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", "))),
+            },
+        }
+    }
+
+    /// Runs scene `name` through prune, adjoint and simplify.
+    pub fn pipeline(&self, name: Option<&str>, opts: Options) -> Result<ScenePipeline, String> {
+        let mut checked = self.scene_ir(name)?.clone();
+        if let Some(p) = opts.precision {
+            checked.precision = p;
+        }
+        Ok(run_passes(checked))
+    }
+}
+
+/// Runs the IR passes on a checked function.
+pub fn run_passes(checked: Function) -> ScenePipeline {
+    let mut times = Vec::new();
+    let t = Instant::now();
+    let pruned = passes::prune(&checked);
+    times.push(("prune", t.elapsed()));
+    let t = Instant::now();
+    let adjoint = passes::adjoint(&pruned);
+    times.push(("adjoint", t.elapsed()));
+    let t = Instant::now();
+    let optimized = passes::simplify(&adjoint);
+    times.push(("simplify", t.elapsed()));
+    for (stage, f) in [("prune", &pruned), ("adjoint", &adjoint), ("simplify", &optimized)] {
+        if let Err(e) = f.verify() {
+            // A verifier failure is a compiler bug; surface it loudly in debug builds.
+            debug_assert!(false, "IR invalid after {stage}: {e}");
+        }
+    }
+    let stats = Stats { checked_ops: checked.insts.len(), pruned_ops: pruned.insts.len(), adjoint_ops: adjoint.insts.len(), optimized_ops: optimized.insts.len(), times };
+    ScenePipeline { checked, pruned, adjoint, optimized, stats }
+}
+
+fn dedup(diags: &mut Vec<Diagnostic>) {
+    let mut seen = std::collections::HashSet::new();
+    diags.retain(|d| seen.insert((d.span, d.message.clone())));
+}
+
+fn load_imports(ast: &ast::SourceFileAst, sources: &mut SourceMap, loaded: &mut Vec<(String, ast::SourceFileAst)>, diags: &mut Vec<Diagnostic>) {
+    for item in &ast.items {
+        let ast::Item::Use(u) = item else { continue };
+        let path: Vec<&str> = u.path.iter().map(|p| p.node.as_str()).collect();
+        if path.first() != Some(&"std") || path.len() != 2 {
+            diags.push(
+                Diagnostic::error(u.span, format!("cannot import from `{}`", path.join("::")))
+                    .with_help(format!("imports name a standard library file: `use std::FILE::{{NAME}}`; files: {}", stdlib::FILES.iter().map(|f| f.0).collect::<Vec<_>>().join(", "))),
+            );
+            continue;
+        }
+        let name = path[1];
+        let Some(text) = stdlib::source(name) else {
+            let mut d = Diagnostic::error(u.path[1].span, format!("no standard library file `{name}`"));
+            d = match crate::diagnostics::did_you_mean(name, stdlib::FILES.iter().map(|f| f.0)) {
+                Some(s) => d.with_help(format!("did you mean `std::{s}`?")),
+                None => d.with_help(format!("files: {}", stdlib::FILES.iter().map(|f| f.0).collect::<Vec<_>>().join(", "))),
+            };
+            diags.push(d);
+            continue;
+        };
+        let display = format!("std::{name}");
+        if !loaded.iter().any(|(n, _)| *n == display) {
+            let id: FileId = sources.add(display.clone(), text);
+            let (std_ast, mut d) = syntax::parse(text, id);
+            diags.append(&mut d);
+            loaded.push((display.clone(), std_ast.clone()));
+            load_imports(&std_ast, sources, loaded, diags);
+        }
+        let std_ast = &loaded.iter().find(|(n, _)| *n == display).expect("just loaded").1;
+        for n in &u.names {
+            let exists = std_ast.items.iter().any(|i| matches!(i, ast::Item::Module(m) if m.name.node == n.node));
+            if !exists {
+                let names: Vec<&str> = std_ast.items.iter().filter_map(|i| if let ast::Item::Module(m) = i { Some(m.name.node.as_str()) } else { None }).collect();
+                let mut d = Diagnostic::error(n.span, format!("`std::{name}` has no module `{}`", n.node));
+                d = match crate::diagnostics::did_you_mean(&n.node, names.iter().copied()) {
+                    Some(s) => d.with_help(format!("did you mean `{s}`?")),
+                    None => d.with_help(format!("it defines: {}", names.join(", "))),
+                };
+                diags.push(d);
+            }
+        }
+    }
+}

@@ -1,0 +1,424 @@
+//! The SSA IR: a flat list of instructions over scalars and arrays on named
+//! grids. Every instruction defines one value (its index); operands always
+//! refer to earlier instructions. Elementwise operands have equal element
+//! kind and shape: the checker inserts explicit [`Op::Broadcast`] and
+//! [`UnOp::ToComplex`] so that passes and backends never guess.
+
+use std::fmt::{self, Write};
+
+/// Element kind of a value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Elem {
+    /// A real number.
+    Real,
+    /// A complex number.
+    Complex,
+    /// A truth value (from comparisons; consumed by `select`).
+    Bool,
+}
+
+/// Index of a grid in [`Function::grids`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct GridId(pub u32);
+
+/// Shape of a value: a scalar, or one element per point of a grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Shape {
+    /// One number.
+    Scalar,
+    /// One number per grid point.
+    Grid(GridId),
+}
+
+/// Type of an IR value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Ty {
+    /// Element kind.
+    pub elem: Elem,
+    /// Shape.
+    pub shape: Shape,
+}
+
+impl Ty {
+    /// A real scalar.
+    pub const REAL: Ty = Ty { elem: Elem::Real, shape: Shape::Scalar };
+    /// A complex scalar.
+    pub const COMPLEX: Ty = Ty { elem: Elem::Complex, shape: Shape::Scalar };
+    /// The same shape with another element kind.
+    pub fn with_elem(self, elem: Elem) -> Ty {
+        Ty { elem, shape: self.shape }
+    }
+}
+
+/// An SSA value: the index of the instruction that defines it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Value(pub u32);
+
+impl Value {
+    /// As an index into [`Function::insts`].
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+/// Unary operations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum UnOp {
+    /// `-x` (real or complex).
+    Neg,
+    /// Square root (real).
+    Sqrt,
+    /// Cube root (real, odd: defined for negative x).
+    Cbrt,
+    /// `e^x` (real or complex).
+    Exp,
+    /// Natural logarithm (real).
+    Log,
+    /// Sine.
+    Sin,
+    /// Cosine.
+    Cos,
+    /// Tangent.
+    Tan,
+    /// Hyperbolic tangent.
+    Tanh,
+    /// Absolute value; for a complex operand, the modulus (a real result).
+    Abs,
+    /// Sign: -1, 0 or 1.
+    Sign,
+    /// Real part of a complex value.
+    Re,
+    /// Imaginary part of a complex value.
+    Im,
+    /// Complex conjugate.
+    Conj,
+    /// `|z|^2` of a complex value (real result).
+    Abs2,
+    /// `e^{i x}` of a real x (complex result).
+    Cis,
+    /// A real value as a complex one with zero imaginary part.
+    ToComplex,
+}
+
+/// Binary operations (operands of equal type unless noted).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BinOp {
+    /// Sum.
+    Add,
+    /// Difference.
+    Sub,
+    /// Product.
+    Mul,
+    /// Quotient.
+    Div,
+    /// `x^y` for real x, y.
+    Pow,
+    /// `atan2(y, x)`.
+    Atan2,
+    /// Smaller of two reals.
+    Min,
+    /// Larger of two reals.
+    Max,
+    /// `<` (bool result).
+    Lt,
+    /// `<=`
+    Le,
+    /// `>`
+    Gt,
+    /// `>=`
+    Ge,
+    /// `==`
+    Eq,
+    /// `!=`
+    Ne,
+    /// `re + i·im` from two reals (complex result).
+    Complex,
+}
+
+/// Reductions of an array over its grid to a scalar.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Reduce {
+    /// Sum of all elements (real or complex).
+    Sum,
+    /// Largest element (real).
+    Max,
+}
+
+/// An instruction's operation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Op {
+    /// A real constant (stored as bits so ops can be hashed).
+    Const(u64),
+    /// A complex constant (bits of re, im).
+    ConstComplex(u64, u64),
+    /// Parameter number n (a real scalar, in base units).
+    Param(u32),
+    /// Input number n.
+    Input(u32),
+    /// The coordinates of a grid: `start + i * step`.
+    GridCoord(GridId),
+    /// Unary operation.
+    Unary(UnOp, Value),
+    /// Binary operation.
+    Binary(BinOp, Value, Value),
+    /// `x^c` for a constant c (bits).
+    PowConst(Value, u64),
+    /// Elementwise choice: `if c then a else b`.
+    Select(Value, Value, Value),
+    /// A scalar repeated over a grid.
+    Broadcast(Value, GridId),
+    /// A reduction over the operand's grid.
+    Reduce(Reduce, Value),
+}
+
+impl Op {
+    /// A real constant.
+    pub fn constant(x: f64) -> Op {
+        Op::Const(x.to_bits())
+    }
+
+    /// The operands, in order.
+    pub fn operands(&self) -> Vec<Value> {
+        match *self {
+            Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) => vec![],
+            Op::Unary(_, a) | Op::PowConst(a, _) | Op::Broadcast(a, _) | Op::Reduce(_, a) => vec![a],
+            Op::Binary(_, a, b) => vec![a, b],
+            Op::Select(c, a, b) => vec![c, a, b],
+        }
+    }
+
+    /// The same op with each operand replaced by `f(operand)`.
+    pub fn map_operands(&self, mut f: impl FnMut(Value) -> Value) -> Op {
+        match *self {
+            Op::Unary(u, a) => Op::Unary(u, f(a)),
+            Op::PowConst(a, c) => Op::PowConst(f(a), c),
+            Op::Broadcast(a, g) => Op::Broadcast(f(a), g),
+            Op::Reduce(r, a) => Op::Reduce(r, f(a)),
+            Op::Binary(b, x, y) => Op::Binary(b, f(x), f(y)),
+            Op::Select(c, x, y) => Op::Select(f(c), f(x), f(y)),
+            other => other,
+        }
+    }
+}
+
+/// One instruction: an operation and the type of the value it defines.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Inst {
+    /// What it computes.
+    pub op: Op,
+    /// Type of the result.
+    pub ty: Ty,
+}
+
+/// A uniform grid: `len` points `start + i * step` (base units).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    /// Name in the scene.
+    pub name: String,
+    /// First coordinate.
+    pub start: f64,
+    /// Spacing.
+    pub step: f64,
+    /// Number of points.
+    pub len: usize,
+    /// Unit of the coordinates, for display.
+    pub unit: String,
+}
+
+/// Working precision of generated code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum Precision {
+    /// 64-bit floats everywhere.
+    #[default]
+    F64,
+    /// 32-bit floats for arithmetic; reductions accumulate in f64.
+    F32,
+}
+
+impl fmt::Display for Precision {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Precision::F64 => "f64",
+            Precision::F32 => "f32",
+        })
+    }
+}
+
+/// A scalar parameter of the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamInfo {
+    /// Name.
+    pub name: String,
+    /// Default value in the declared unit.
+    pub default: Option<f64>,
+    /// Bounds in the declared unit.
+    pub bounds: Option<(f64, f64)>,
+    /// Base units per declared unit (values are multiplied by it on the way in).
+    pub scale: f64,
+    /// Declared unit, for display.
+    pub unit: String,
+}
+
+/// Run-time data of the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InputInfo {
+    /// Name.
+    pub name: String,
+    /// Type (element kind and shape).
+    pub ty: Ty,
+    /// Base units per declared unit.
+    pub scale: f64,
+    /// Declared unit, for display.
+    pub unit: String,
+    /// Data used when none is bound (base units), from the input's default.
+    pub default: Option<Vec<num_complex::Complex64>>,
+}
+
+/// A named result of the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Output {
+    /// Name.
+    pub name: String,
+    /// The value.
+    pub value: Value,
+    /// Unit (base units), for display.
+    pub unit: String,
+}
+
+/// A gradient the scene computes: d output / d param.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GradOutput {
+    /// Index into [`Function::outputs`].
+    pub output: usize,
+    /// Index into [`Function::params`].
+    pub param: usize,
+    /// The value (per base unit of the param); `None` until the adjoint pass runs.
+    pub value: Option<Value>,
+}
+
+/// A scene lowered to IR: everything one compiled kernel computes.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Function {
+    /// Scene name.
+    pub name: String,
+    /// Grids.
+    pub grids: Vec<Grid>,
+    /// Parameters.
+    pub params: Vec<ParamInfo>,
+    /// Inputs.
+    pub inputs: Vec<InputInfo>,
+    /// Instructions; value `%i` is defined by `insts[i]`.
+    pub insts: Vec<Inst>,
+    /// Requested outputs.
+    pub outputs: Vec<Output>,
+    /// Requested gradients.
+    pub grads: Vec<GradOutput>,
+    /// Working precision.
+    pub precision: Precision,
+}
+
+impl Function {
+    /// Type of `v`.
+    pub fn ty(&self, v: Value) -> Ty {
+        self.insts[v.index()].ty
+    }
+
+    /// The number of elements a value of shape `s` holds.
+    pub fn len_of(&self, s: Shape) -> usize {
+        match s {
+            Shape::Scalar => 1,
+            Shape::Grid(g) => self.grids[g.0 as usize].len,
+        }
+    }
+
+    /// All values the function returns (outputs, then computed gradients).
+    pub fn roots(&self) -> Vec<Value> {
+        self.outputs.iter().map(|o| o.value).chain(self.grads.iter().filter_map(|g| g.value)).collect()
+    }
+
+    /// Checks SSA order and operand types; `Err` names the first bad instruction.
+    pub fn verify(&self) -> Result<(), String> {
+        for (i, inst) in self.insts.iter().enumerate() {
+            for v in inst.op.operands() {
+                if v.index() >= i {
+                    return Err(format!("%{i} uses %{} before it is defined", v.0));
+                }
+            }
+            let t = |v: Value| self.insts[v.index()].ty;
+            let ok = match inst.op {
+                Op::Binary(BinOp::Complex, a, b) => t(a) == t(b) && t(a).elem == Elem::Real,
+                Op::Binary(_, a, b) => t(a) == t(b),
+                Op::Select(c, a, b) => t(a) == t(b) && t(c).elem == Elem::Bool && t(c).shape == t(a).shape,
+                Op::Broadcast(a, _) => t(a).shape == Shape::Scalar,
+                Op::Reduce(_, a) => t(a).shape != Shape::Scalar,
+                _ => true,
+            };
+            if !ok {
+                return Err(format!("%{i} = {} has operands of mismatched types", self.fmt_op(&inst.op)));
+            }
+        }
+        for r in self.roots() {
+            if r.index() >= self.insts.len() {
+                return Err(format!("result %{} is not defined", r.0));
+            }
+        }
+        Ok(())
+    }
+
+    fn fmt_op(&self, op: &Op) -> String {
+        let g = |g: GridId| self.grids.get(g.0 as usize).map(|g| g.name.clone()).unwrap_or("?".into());
+        match *op {
+            Op::Const(b) => format!("const {:?}", f64::from_bits(b)),
+            Op::ConstComplex(r, i) => format!("const {:?}{:+?}i", f64::from_bits(r), f64::from_bits(i)),
+            Op::Param(p) => format!("param {}", self.params.get(p as usize).map(|p| p.name.as_str()).unwrap_or("?")),
+            Op::Input(p) => format!("input {}", self.inputs.get(p as usize).map(|p| p.name.as_str()).unwrap_or("?")),
+            Op::GridCoord(gr) => format!("grid {}", g(gr)),
+            Op::Unary(u, a) => format!("{} %{}", format!("{u:?}").to_lowercase(), a.0),
+            Op::Binary(b, x, y) => format!("{} %{}, %{}", format!("{b:?}").to_lowercase(), x.0, y.0),
+            Op::PowConst(a, c) => format!("powc %{}, {:?}", a.0, f64::from_bits(c)),
+            Op::Select(c, a, b) => format!("select %{}, %{}, %{}", c.0, a.0, b.0),
+            Op::Broadcast(a, gr) => format!("broadcast %{} to {}", a.0, g(gr)),
+            Op::Reduce(r, a) => format!("{} %{}", format!("{r:?}").to_lowercase(), a.0),
+        }
+    }
+
+    /// Formats a type as `real`, `complex[f]`.
+    pub fn fmt_ty(&self, ty: Ty) -> String {
+        let e = match ty.elem {
+            Elem::Real => "real",
+            Elem::Complex => "complex",
+            Elem::Bool => "bool",
+        };
+        match ty.shape {
+            Shape::Scalar => e.to_string(),
+            Shape::Grid(g) => format!("{e}[{}]", self.grids.get(g.0 as usize).map(|g| g.name.as_str()).unwrap_or("?")),
+        }
+    }
+}
+
+impl fmt::Display for Function {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut s = String::new();
+        let _ = writeln!(s, "scene {} (precision {})", self.name, self.precision);
+        for g in &self.grids {
+            let _ = writeln!(s, "  grid {}: {} points, {:?} + i*{:?} [{}]", g.name, g.len, g.start, g.step, g.unit);
+        }
+        for p in &self.params {
+            let _ = writeln!(s, "  param {} [{}] scale {:?}", p.name, p.unit, p.scale);
+        }
+        for i in &self.inputs {
+            let _ = writeln!(s, "  input {}: {} [{}]", i.name, self.fmt_ty(i.ty), i.unit);
+        }
+        for (i, inst) in self.insts.iter().enumerate() {
+            let _ = writeln!(s, "  %{i}: {} = {}", self.fmt_ty(inst.ty), self.fmt_op(&inst.op));
+        }
+        for o in &self.outputs {
+            let _ = writeln!(s, "  output {} = %{} [{}]", o.name, o.value.0, o.unit);
+        }
+        for g in &self.grads {
+            let v = g.value.map(|v| format!("%{}", v.0)).unwrap_or("(not computed)".into());
+            let _ = writeln!(s, "  grad d{}/d{} = {v}", self.outputs[g.output].name, self.params[g.param].name);
+        }
+        f.write_str(&s)
+    }
+}

@@ -1,0 +1,36 @@
+//! IR-to-IR passes. Each takes a [`Function`] and returns a new one; the
+//! driver verifies the IR after each pass and can dump it.
+//!
+//! - [`prune`]: keep only what the requested outputs and gradients need (DCE).
+//! - [`adjoint`]: symbolic reverse-mode differentiation with activity analysis.
+//! - [`simplify`]: rebuild through the folding builder (CSE, constant
+//!   folding, algebraic identities), then prune.
+
+mod adjoint;
+mod prune;
+
+pub use adjoint::adjoint;
+pub use prune::prune;
+
+use crate::builder::Builder;
+use crate::ir::{Function, Value};
+
+/// CSE, constant folding and algebraic simplification, followed by DCE.
+pub fn simplify(func: &Function) -> Function {
+    let mut header = func.clone();
+    header.insts.clear();
+    let mut b = Builder::new(header, true);
+    let mut map: Vec<Value> = Vec::with_capacity(func.insts.len());
+    for inst in &func.insts {
+        let op = inst.op.map_operands(|v| map[v.index()]);
+        map.push(b.emit(op));
+    }
+    let mut out = b.func;
+    for o in &mut out.outputs {
+        o.value = map[o.value.index()];
+    }
+    for g in &mut out.grads {
+        g.value = g.value.map(|v| map[v.index()]);
+    }
+    prune(&out)
+}
