@@ -15,3 +15,4 @@ pub mod stdlib;
 pub mod driver;
 
 pub use driver::{CompileError, Options, Program, ScenePipeline, Stats};
+pub mod codegen;

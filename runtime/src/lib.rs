@@ -1,1 +1,408 @@
-pub fn x(){}
+//! gwml runtime: compile a model, bind parameters and data by name, run
+//! the JIT kernels, and read outputs and gradients by name.
+//!
+//! ```no_run
+//! let model = gwml_runtime::Model::from_file("examples/chirp_fit.gw")?;
+//! let scene = model.scene(Some("chirp_fit"))?;
+//! let mut run = scene.bind();
+//! run.param("mc", 30.0)?;
+//! let out = run.value_and_grad()?;
+//! println!("{} {}", out.scalar("loss")?, out.grad("loss", "mc")?);
+//! # Ok::<(), gwml_runtime::Error>(())
+//! ```
+
+use gwml_compiler::codegen::{self, BufferKind, Kernel};
+use gwml_compiler::diagnostics::did_you_mean;
+use gwml_compiler::ir::{Elem, Function, Precision, Shape};
+use gwml_compiler::{CompileError, Options, Program, ScenePipeline};
+use num_complex::Complex64 as C64;
+use std::cell::OnceCell;
+use std::fmt;
+use std::path::Path;
+
+/// Anything that can go wrong between source text and results.
+#[derive(Debug)]
+pub enum Error {
+    /// The source has errors (render them with [`CompileError::render`]).
+    Compile(CompileError),
+    /// A scene name that does not exist, or none chosen among several.
+    Scene(String),
+    /// Code generation failed.
+    Codegen(codegen::CodegenError),
+    /// Reading a file failed.
+    Io(String),
+    /// A name given to `param`/`input`/`scalar`/`grad` that the scene lacks.
+    UnknownName {
+        /// "param", "input", "output" or "gradient".
+        kind: &'static str,
+        /// The name given.
+        name: String,
+        /// The closest existing name.
+        suggestion: Option<String>,
+    },
+    /// Bad data or parameter values.
+    Bind(String),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Compile(e) => write!(f, "{}", e.render(false)),
+            Error::Scene(s) | Error::Io(s) | Error::Bind(s) => write!(f, "{s}"),
+            Error::Codegen(e) => write!(f, "{e}"),
+            Error::UnknownName { kind, name, suggestion } => {
+                write!(f, "the scene has no {kind} `{name}`")?;
+                if let Some(s) = suggestion {
+                    write!(f, "; did you mean `{s}`?")?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+impl From<CompileError> for Error {
+    fn from(e: CompileError) -> Self {
+        Error::Compile(e)
+    }
+}
+
+/// A checked program, ready to compile its scenes.
+#[derive(Clone, Debug)]
+pub struct Model {
+    /// The checked program.
+    pub program: Program,
+}
+
+impl Model {
+    /// Compiles source text (`name` is used in diagnostics).
+    pub fn from_source(name: &str, text: &str) -> Result<Model, Error> {
+        Ok(Model { program: Program::parse(name, text)? })
+    }
+
+    /// Reads and compiles a `.gw` file.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Model, Error> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io(format!("cannot read {}: {e}", path.display())))?;
+        Model::from_source(&path.display().to_string(), &text)
+    }
+
+    /// JIT-compiles scene `name` (or the only scene) with default options.
+    pub fn scene(&self, name: Option<&str>) -> Result<Scene, Error> {
+        self.scene_with(name, Options::default())
+    }
+
+    /// JIT-compiles scene `name` with `opts`.
+    pub fn scene_with(&self, name: Option<&str>, opts: Options) -> Result<Scene, Error> {
+        let pipeline = self.program.pipeline(name, opts).map_err(Error::Scene)?;
+        Scene::new(pipeline)
+    }
+}
+
+/// A compiled scene: the forward kernel (built now) and the forward+gradient
+/// kernel (built the first time a gradient is asked for).
+pub struct Scene {
+    /// Every IR stage of the scene.
+    pub pipeline: ScenePipeline,
+    forward_ir: Function,
+    forward: Kernel,
+    gradient: OnceCell<Result<Kernel, codegen::CodegenError>>,
+}
+
+impl fmt::Debug for Scene {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Scene").field("name", &self.pipeline.optimized.name).finish()
+    }
+}
+
+impl Scene {
+    fn new(pipeline: ScenePipeline) -> Result<Scene, Error> {
+        let mut fwd = pipeline.pruned.clone();
+        fwd.grads.clear();
+        let forward_ir = gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd));
+        let forward = codegen::compile(&forward_ir).map_err(Error::Codegen)?;
+        Ok(Scene { pipeline, forward_ir, forward, gradient: OnceCell::new() })
+    }
+
+    /// The IR that the gradient kernel runs (forward and adjoint).
+    pub fn ir(&self) -> &Function {
+        &self.pipeline.optimized
+    }
+
+    /// The forward-only IR.
+    pub fn forward_ir(&self) -> &Function {
+        &self.forward_ir
+    }
+
+    /// The forward kernel.
+    pub fn forward_kernel(&self) -> &Kernel {
+        &self.forward
+    }
+
+    /// The forward+gradient kernel, compiling it on first use.
+    pub fn gradient_kernel(&self) -> Result<&Kernel, Error> {
+        self.gradient.get_or_init(|| codegen::compile(&self.pipeline.optimized)).as_ref().map_err(|e| Error::Codegen(e.clone()))
+    }
+
+    /// Starts a run with every param at its default and inputs at their defaults.
+    pub fn bind(&self) -> Run<'_> {
+        let f = self.ir();
+        Run { scene: self, params: f.params.iter().map(|p| p.default).collect(), inputs: f.inputs.iter().map(|i| i.default.clone()).collect(), scratch: Vec::new(), scalars: Vec::new() }
+    }
+}
+
+/// Storage for one buffer, in the kernel's precision.
+enum Buffer {
+    F64(Vec<f64>),
+    F32(Vec<f32>),
+}
+
+impl Buffer {
+    fn new(precision: Precision, floats: usize) -> Buffer {
+        match precision {
+            Precision::F64 => Buffer::F64(vec![0.0; floats]),
+            Precision::F32 => Buffer::F32(vec![0.0; floats]),
+        }
+    }
+    fn ptr(&mut self) -> *mut u8 {
+        match self {
+            Buffer::F64(v) => v.as_mut_ptr() as *mut u8,
+            Buffer::F32(v) => v.as_mut_ptr() as *mut u8,
+        }
+    }
+    fn get(&self, i: usize) -> f64 {
+        match self {
+            Buffer::F64(v) => v[i],
+            Buffer::F32(v) => v[i] as f64,
+        }
+    }
+}
+
+/// A value the scene produced.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Value {
+    /// A real scalar.
+    Real(f64),
+    /// A complex scalar.
+    Complex(C64),
+    /// A real array.
+    RealArray(Vec<f64>),
+    /// A complex array.
+    ComplexArray(Vec<C64>),
+}
+
+/// Outputs and gradients of one run.
+#[derive(Clone, Debug)]
+pub struct Outputs {
+    /// Params used, in declared units, in declaration order.
+    pub params: Vec<(String, f64)>,
+    /// Outputs in declaration order (base units).
+    pub values: Vec<(String, Value)>,
+    /// Gradients `(output, param, d output / d param)` per declared unit of the param.
+    pub grads: Vec<(String, String, f64)>,
+}
+
+impl Outputs {
+    /// The output `name`.
+    pub fn value(&self, name: &str) -> Result<&Value, Error> {
+        self.values.iter().find(|(n, _)| n == name).map(|(_, v)| v).ok_or_else(|| unknown("output", name, self.values.iter().map(|(n, _)| n.as_str())))
+    }
+
+    /// The real scalar output `name`.
+    pub fn scalar(&self, name: &str) -> Result<f64, Error> {
+        match self.value(name)? {
+            Value::Real(x) => Ok(*x),
+            _ => Err(Error::Bind(format!("output `{name}` is not a real scalar"))),
+        }
+    }
+
+    /// The gradient of `output` with respect to `param`.
+    pub fn grad(&self, output: &str, param: &str) -> Result<f64, Error> {
+        self.grads.iter().find(|(o, p, _)| o == output && p == param).map(|g| g.2).ok_or_else(|| {
+            let names: Vec<String> = self.grads.iter().map(|(o, p, _)| format!("{o}/{p}")).collect();
+            unknown("gradient", &format!("{output}/{param}"), names.iter().map(|s| s.as_str()))
+        })
+    }
+}
+
+fn unknown<'a>(kind: &'static str, name: &str, names: impl Iterator<Item = &'a str>) -> Error {
+    Error::UnknownName { kind, name: name.to_string(), suggestion: did_you_mean(name, names).map(str::to_string) }
+}
+
+/// Params and data bound to a scene, ready to run. Buffers are allocated on
+/// the first run and reused, so repeated runs do not allocate per-bin arrays.
+pub struct Run<'s> {
+    scene: &'s Scene,
+    params: Vec<Option<f64>>,
+    inputs: Vec<Option<Vec<C64>>>,
+    scratch: Vec<(bool, Buffer)>,
+    scalars: Vec<f64>,
+}
+
+impl<'s> Run<'s> {
+    fn func(&self) -> &'s Function {
+        self.scene.ir()
+    }
+
+    /// Sets param `name` (in its declared unit).
+    pub fn param(&mut self, name: &str, value: f64) -> Result<&mut Self, Error> {
+        let f = self.func();
+        let i = f.params.iter().position(|p| p.name == name).ok_or_else(|| unknown("param", name, f.params.iter().map(|p| p.name.as_str())))?;
+        if !value.is_finite() {
+            return Err(Error::Bind(format!("param `{name}` = {value} is not finite")));
+        }
+        self.params[i] = Some(value);
+        Ok(self)
+    }
+
+    /// Binds a real input (in its declared unit).
+    pub fn input_real(&mut self, name: &str, data: &[f64]) -> Result<&mut Self, Error> {
+        let c: Vec<C64> = data.iter().map(|x| C64::new(*x, 0.0)).collect();
+        self.bind_input(name, c, false)
+    }
+
+    /// Binds a complex input (in its declared unit).
+    pub fn input_complex(&mut self, name: &str, data: &[C64]) -> Result<&mut Self, Error> {
+        self.bind_input(name, data.to_vec(), true)
+    }
+
+    fn bind_input(&mut self, name: &str, data: Vec<C64>, complex: bool) -> Result<&mut Self, Error> {
+        let f = self.func();
+        let i = f.inputs.iter().position(|p| p.name == name).ok_or_else(|| unknown("input", name, f.inputs.iter().map(|p| p.name.as_str())))?;
+        let info = &f.inputs[i];
+        if complex && info.ty.elem == Elem::Real {
+            return Err(Error::Bind(format!("input `{name}` is real, but complex data was given")));
+        }
+        let want = f.len_of(info.ty.shape);
+        if data.len() != want {
+            let grid = match info.ty.shape {
+                Shape::Grid(g) => format!(" (grid `{}`)", f.grids[g.0 as usize].name),
+                Shape::Scalar => " (a scalar)".into(),
+            };
+            return Err(Error::Bind(format!("input `{name}` needs {want} values{grid}, but {} were given", data.len())));
+        }
+        if let Some(k) = data.iter().position(|z| !z.re.is_finite() || !z.im.is_finite()) {
+            return Err(Error::Bind(format!("input `{name}` has a non-finite value ({}) at index {k}", data[k])));
+        }
+        self.inputs[i] = Some(data.into_iter().map(|z| z * info.scale).collect());
+        Ok(self)
+    }
+
+    /// Runs the forward kernel.
+    pub fn forward(&mut self) -> Result<Outputs, Error> {
+        let kernel = &self.scene.forward;
+        let func = &self.scene.forward_ir;
+        self.execute(kernel, func)
+    }
+
+    /// Runs the fused forward+gradient kernel.
+    pub fn value_and_grad(&mut self) -> Result<Outputs, Error> {
+        let kernel = self.scene.gradient_kernel()?;
+        let func = self.scene.ir();
+        self.execute(kernel, func)
+    }
+
+    fn execute(&mut self, kernel: &Kernel, func: &Function) -> Result<Outputs, Error> {
+        let layout = &kernel.layout;
+        let mut params = Vec::with_capacity(func.params.len());
+        for (p, v) in func.params.iter().zip(&self.params) {
+            let v = v.ok_or_else(|| Error::Bind(format!("param `{}` has no default; set it (e.g. `--set {}=VALUE`)", p.name, p.name)))?;
+            if let Some((lo, hi)) = p.bounds {
+                if !(lo..=hi).contains(&v) {
+                    return Err(Error::Bind(format!("param `{}` = {v} is outside its bounds {lo}..{hi}", p.name)));
+                }
+            }
+            params.push(v * p.scale);
+        }
+        // (Re)allocate buffers for this kernel's layout.
+        let floats = |b: &codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
+        if self.scratch.len() != layout.buffers.len() || self.scratch.iter().zip(&layout.buffers).any(|((c, _), b)| *c != b.complex) {
+            self.scratch = layout.buffers.iter().map(|b| (b.complex, Buffer::new(layout.precision, floats(b)))).collect();
+        }
+        for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
+            if let BufferKind::Input(i) = info.kind {
+                let data = self.inputs[i].as_ref().ok_or_else(|| Error::Bind(format!("input `{}` is not bound and has no default; bind it (e.g. `--input {}=FILE.npy`)", func.inputs[i].name, func.inputs[i].name)))?;
+                fill(buf, data, info.complex);
+            }
+        }
+        self.scalars.clear();
+        self.scalars.resize(layout.scalar_slots, 0.0);
+        let ptrs: Vec<*mut u8> = self.scratch.iter_mut().map(|(_, b)| b.ptr()).collect();
+        // SAFETY: params has one entry per scene param; every buffer was
+        // allocated from the kernel's own layout (length and precision), and
+        // scalars has layout.scalar_slots entries.
+        unsafe { kernel.call(params.as_ptr(), ptrs.as_ptr(), self.scalars.as_mut_ptr()) };
+        let read_scalar = |v: gwml_compiler::ir::Value| -> Value {
+            let s = layout.scalars.iter().find(|s| s.value == v).expect("every scalar root has a slot");
+            if s.complex {
+                Value::Complex(C64::new(self.scalars[s.slot], self.scalars[s.slot + 1]))
+            } else {
+                Value::Real(self.scalars[s.slot])
+            }
+        };
+        let mut values = Vec::new();
+        for (oi, o) in func.outputs.iter().enumerate() {
+            let v = if func.ty(o.value).shape == Shape::Scalar {
+                read_scalar(o.value)
+            } else {
+                let k = layout.buffers.iter().position(|b| b.kind == BufferKind::Output(oi)).expect("array outputs have a buffer");
+                let (complex, buf) = &self.scratch[k];
+                let n = layout.buffers[k].len;
+                if *complex {
+                    Value::ComplexArray((0..n).map(|i| C64::new(buf.get(2 * i), buf.get(2 * i + 1))).collect())
+                } else {
+                    Value::RealArray((0..n).map(|i| buf.get(i)).collect())
+                }
+            };
+            values.push((o.name.clone(), v));
+        }
+        let mut grads = Vec::new();
+        for g in &func.grads {
+            let Some(v) = g.value else { continue };
+            let Value::Real(x) = read_scalar(v) else { continue };
+            let p = &func.params[g.param];
+            grads.push((func.outputs[g.output].name.clone(), p.name.clone(), x * p.scale));
+        }
+        let params_used = func.params.iter().zip(&self.params).map(|(p, v)| (p.name.clone(), v.unwrap_or(f64::NAN))).collect();
+        if let Some((name, _)) = values.iter().find(|(_, v)| !value_finite(v)) {
+            return Err(Error::Bind(format!("output `{name}` is not finite (NaN or infinity) at these params; check params against their bounds and the data")));
+        }
+        Ok(Outputs { params: params_used, values, grads })
+    }
+}
+
+fn value_finite(v: &Value) -> bool {
+    match v {
+        Value::Real(x) => x.is_finite(),
+        Value::Complex(z) => z.re.is_finite() && z.im.is_finite(),
+        Value::RealArray(a) => a.iter().all(|x| x.is_finite()),
+        Value::ComplexArray(a) => a.iter().all(|z| z.re.is_finite() && z.im.is_finite()),
+    }
+}
+
+fn fill(buf: &mut Buffer, data: &[C64], complex: bool) {
+    match buf {
+        Buffer::F64(v) => {
+            for (i, z) in data.iter().enumerate() {
+                if complex {
+                    v[2 * i] = z.re;
+                    v[2 * i + 1] = z.im;
+                } else {
+                    v[i] = z.re;
+                }
+            }
+        }
+        Buffer::F32(v) => {
+            for (i, z) in data.iter().enumerate() {
+                if complex {
+                    v[2 * i] = z.re as f32;
+                    v[2 * i + 1] = z.im as f32;
+                } else {
+                    v[i] = z.re as f32;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,817 @@
+//! Code generation: fuse the optimised IR into loops and JIT-compile it
+//! with Cranelift.
+//!
+//! # Fusion
+//! Every value gets an *epoch*: reductions finish at the end of a loop, so
+//! `epoch(reduce(x)) = epoch(x) + 1` and every other value takes the largest
+//! epoch of its operands. All array instructions of one epoch over one grid
+//! run in ONE loop, together with the reductions that consume them. A
+//! forward pass and the adjoint of an elementwise chain (whose seeds do not
+//! depend on a reduction) therefore share a loop, and the gradients w.r.t.
+//! scalar params accumulate in registers with no intermediate arrays.
+//! Arrays are stored to a scratch buffer only when a later loop reads them
+//! or they are outputs. Broadcasts, grid coordinates and inputs are
+//! recomputed (or reloaded) in each loop that uses them.
+//!
+//! # Kernel ABI
+//! `extern "C" fn(params: *const f64, buffers: *const *mut u8, scalars: *mut f64)`:
+//! `params` holds the scene's params in base units; `buffers[k]` points at
+//! buffer `k` of [`Layout::buffers`] (elements of the working precision,
+//! complex interleaved re/im) holding exactly `len` elements, which the
+//! runtime guarantees; scalar results are written as f64 to
+//! `scalars[slot]` (complex results take two slots).
+
+use crate::ir::*;
+use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
+use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type};
+use cranelift_codegen::settings::{self, Configurable};
+use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
+use cranelift_jit::{JITBuilder, JITModule};
+use cranelift_module::{default_libcall_names, Linkage, Module};
+use std::collections::HashMap;
+use std::fmt;
+
+/// What a buffer passed to the kernel holds.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BufferKind {
+    /// Input number `i` (read only).
+    Input(usize),
+    /// An intermediate array read by a later loop.
+    Scratch,
+    /// Array output number `i` (index into [`Function::outputs`]).
+    Output(usize),
+}
+
+/// One buffer the kernel reads or writes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BufferInfo {
+    /// Its role.
+    pub kind: BufferKind,
+    /// Number of elements.
+    pub len: usize,
+    /// Complex elements take two floats.
+    pub complex: bool,
+}
+
+/// Where a scalar result is written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScalarSlot {
+    /// The IR value.
+    pub value: Value,
+    /// First slot in the `scalars` array.
+    pub slot: usize,
+    /// Complex results take `slot` and `slot + 1`.
+    pub complex: bool,
+}
+
+/// How the runtime must call a kernel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Layout {
+    /// Buffers in call order.
+    pub buffers: Vec<BufferInfo>,
+    /// Scalar results.
+    pub scalars: Vec<ScalarSlot>,
+    /// Total scalar slots.
+    pub scalar_slots: usize,
+    /// Number of fused loops.
+    pub loops: usize,
+    /// Working precision (element type of every buffer).
+    pub precision: Precision,
+}
+
+/// Code generation failed (a compiler bug or an unsupported target).
+#[derive(Clone, Debug)]
+pub struct CodegenError(pub String);
+
+impl fmt::Display for CodegenError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "code generation failed: {}", self.0)
+    }
+}
+
+impl std::error::Error for CodegenError {}
+
+type KernelFn = unsafe extern "C" fn(*const f64, *const *mut u8, *mut f64);
+
+/// A JIT-compiled scene.
+pub struct Kernel {
+    module: Option<JITModule>,
+    entry: KernelFn,
+    /// Calling convention.
+    pub layout: Layout,
+    /// Cranelift IR text (before optimisation), for `--emit clif`.
+    pub clif: String,
+    /// Cranelift instructions in the kernel.
+    pub clif_insts: usize,
+}
+
+impl Kernel {
+    /// Calls the kernel.
+    ///
+    /// # Safety
+    /// `params` must hold one value per scene param, `buffers` one pointer per
+    /// [`Layout::buffers`] entry to at least `len` (×2 if complex) elements of
+    /// the layout's precision, writable for scratch and output buffers, and
+    /// `scalars` at least [`Layout::scalar_slots`] values.
+    pub unsafe fn call(&self, params: *const f64, buffers: *const *mut u8, scalars: *mut f64) {
+        unsafe { (self.entry)(params, buffers, scalars) }
+    }
+}
+
+impl Drop for Kernel {
+    fn drop(&mut self) {
+        if let Some(m) = self.module.take() {
+            // SAFETY: the kernel is being dropped, so no pointer into its code survives.
+            unsafe { m.free_memory() };
+        }
+    }
+}
+
+impl fmt::Debug for Kernel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Kernel").field("layout", &self.layout).finish()
+    }
+}
+
+/// Per-value scheduling decisions.
+struct Schedule {
+    epoch: Vec<u32>,
+    /// Loops in emission order: (epoch, grid, member instructions).
+    loops: Vec<(u32, GridId, Vec<usize>)>,
+    /// Scalar instructions per epoch (excluding reductions).
+    scalars: Vec<Vec<usize>>,
+    /// Array values stored to a buffer: value index → buffer index.
+    stored: HashMap<usize, usize>,
+}
+
+fn on_demand(op: &Op) -> bool {
+    matches!(op, Op::Broadcast(..) | Op::GridCoord(_) | Op::Input(_))
+}
+
+fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
+    let n = func.insts.len();
+    let mut epoch = vec![0u32; n];
+    for (i, inst) in func.insts.iter().enumerate() {
+        epoch[i] = match inst.op {
+            Op::Reduce(_, a) => epoch[a.index()] + 1,
+            op => op.operands().iter().map(|v| epoch[v.index()]).max().unwrap_or(0),
+        };
+    }
+    let max_epoch = epoch.iter().copied().max().unwrap_or(0);
+    let mut scalars = vec![Vec::new(); max_epoch as usize + 1];
+    let mut loop_map: HashMap<(u32, GridId), Vec<usize>> = HashMap::new();
+    let roots: Vec<Value> = func.roots();
+    for (i, inst) in func.insts.iter().enumerate() {
+        match (inst.op, inst.ty.shape) {
+            (Op::Reduce(_, a), _) => {
+                let Shape::Grid(g) = func.ty(a).shape else { continue };
+                loop_map.entry((epoch[a.index()], g)).or_default().push(i);
+            }
+            (op, Shape::Grid(g)) => {
+                if !on_demand(&op) || roots.contains(&Value(i as u32)) {
+                    loop_map.entry((epoch[i], g)).or_default().push(i);
+                }
+            }
+            (_, Shape::Scalar) => scalars[epoch[i] as usize].push(i),
+        }
+    }
+    let mut loops: Vec<(u32, GridId, Vec<usize>)> = loop_map.into_iter().map(|((e, g), m)| (e, g, m)).collect();
+    loops.sort_by_key(|(e, g, _)| (*e, *g));
+    // Which arrays must be stored: outputs, and values read by another loop.
+    let mut home: HashMap<usize, usize> = HashMap::new();
+    for (li, (_, _, members)) in loops.iter().enumerate() {
+        for &m in members {
+            if !matches!(func.insts[m].op, Op::Reduce(..)) {
+                home.insert(m, li);
+            }
+        }
+    }
+    let mut stored = HashMap::new();
+    let need_store = |v: usize, kind: BufferKind, layout: &mut Layout, stored: &mut HashMap<usize, usize>| {
+        if stored.contains_key(&v) && kind == BufferKind::Scratch {
+            return;
+        }
+        let ty = func.insts[v].ty;
+        layout.buffers.push(BufferInfo { kind, len: func.len_of(ty.shape), complex: ty.elem == Elem::Complex });
+        stored.insert(v, layout.buffers.len() - 1);
+    };
+    for (oi, o) in func.outputs.iter().enumerate() {
+        if func.ty(o.value).shape != Shape::Scalar {
+            need_store(o.value.index(), BufferKind::Output(oi), layout, &mut stored);
+        }
+    }
+    for (li, (_, _, members)) in loops.iter().enumerate() {
+        for &m in members {
+            for v in func.insts[m].op.operands() {
+                if let Some(&h) = home.get(&v.index()) {
+                    if h != li && !on_demand(&func.insts[v.index()].op) {
+                        need_store(v.index(), BufferKind::Scratch, layout, &mut stored);
+                    }
+                }
+            }
+        }
+    }
+    Schedule { epoch, loops, scalars, stored }
+}
+
+/// A value in generated code: real part, and imaginary part for complex.
+#[derive(Clone, Copy)]
+struct Cv {
+    re: cranelift_codegen::ir::Value,
+    im: Option<cranelift_codegen::ir::Value>,
+}
+
+impl Cv {
+    fn real(re: cranelift_codegen::ir::Value) -> Cv {
+        Cv { re, im: None }
+    }
+}
+
+/// libm functions the kernels may call, resolved to this process's symbols.
+mod libm {
+    unsafe extern "C" {
+        pub fn cbrt(x: f64) -> f64;
+        pub fn exp(x: f64) -> f64;
+        pub fn log(x: f64) -> f64;
+        pub fn sin(x: f64) -> f64;
+        pub fn cos(x: f64) -> f64;
+        pub fn tan(x: f64) -> f64;
+        pub fn tanh(x: f64) -> f64;
+        pub fn pow(x: f64, y: f64) -> f64;
+        pub fn atan2(y: f64, x: f64) -> f64;
+        pub fn sincos(x: f64, s: *mut f64, c: *mut f64);
+        pub fn cbrtf(x: f32) -> f32;
+        pub fn expf(x: f32) -> f32;
+        pub fn logf(x: f32) -> f32;
+        pub fn sinf(x: f32) -> f32;
+        pub fn cosf(x: f32) -> f32;
+        pub fn tanf(x: f32) -> f32;
+        pub fn tanhf(x: f32) -> f32;
+        pub fn powf(x: f32, y: f32) -> f32;
+        pub fn atan2f(y: f32, x: f32) -> f32;
+        pub fn sincosf(x: f32, s: *mut f32, c: *mut f32);
+    }
+}
+
+const MATH1: &[&str] = &["cbrt", "exp", "log", "sin", "cos", "tan", "tanh"];
+const MATH2: &[&str] = &["pow", "atan2"];
+
+fn libm_symbols() -> Vec<(&'static str, *const u8)> {
+    vec![
+        ("cbrt", libm::cbrt as *const u8),
+        ("exp", libm::exp as *const u8),
+        ("log", libm::log as *const u8),
+        ("sin", libm::sin as *const u8),
+        ("cos", libm::cos as *const u8),
+        ("tan", libm::tan as *const u8),
+        ("tanh", libm::tanh as *const u8),
+        ("pow", libm::pow as *const u8),
+        ("atan2", libm::atan2 as *const u8),
+        ("sincos", libm::sincos as *const u8),
+        ("cbrtf", libm::cbrtf as *const u8),
+        ("expf", libm::expf as *const u8),
+        ("logf", libm::logf as *const u8),
+        ("sinf", libm::sinf as *const u8),
+        ("cosf", libm::cosf as *const u8),
+        ("tanf", libm::tanf as *const u8),
+        ("tanhf", libm::tanhf as *const u8),
+        ("powf", libm::powf as *const u8),
+        ("atan2f", libm::atan2f as *const u8),
+        ("sincosf", libm::sincosf as *const u8),
+    ]
+}
+
+/// Compiles `func` (optimised IR) to a native kernel.
+pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
+    let err = |e: &dyn fmt::Display| CodegenError(e.to_string());
+    let mut flags = settings::builder();
+    flags.set("opt_level", "speed").map_err(|e| err(&e))?;
+    flags.set("enable_verifier", if cfg!(debug_assertions) { "true" } else { "false" }).map_err(|e| err(&e))?;
+    let isa = cranelift_native::builder().map_err(|e| err(&e))?.finish(settings::Flags::new(flags)).map_err(|e| err(&e))?;
+    let mut jb = JITBuilder::with_isa(isa, default_libcall_names());
+    for (name, ptr) in libm_symbols() {
+        jb.symbol(name, ptr);
+    }
+    let mut module = JITModule::new(jb);
+    let ptr = module.target_config().pointer_type();
+    let mut ctx = module.make_context();
+    for _ in 0..3 {
+        ctx.func.signature.params.push(AbiParam::new(ptr));
+    }
+    let id = module.declare_function("gwml_kernel", Linkage::Export, &ctx.func.signature).map_err(|e| err(&e))?;
+    let mut layout = Layout { buffers: Vec::new(), scalars: Vec::new(), scalar_slots: 0, loops: 0, precision: func.precision };
+    for (i, input) in func.inputs.iter().enumerate() {
+        layout.buffers.push(BufferInfo { kind: BufferKind::Input(i), len: func.len_of(input.ty.shape), complex: input.ty.elem == Elem::Complex });
+    }
+    let sched = schedule(func, &mut layout);
+    layout.loops = sched.loops.len();
+    for r in func.roots() {
+        let ty = func.ty(r);
+        if ty.shape == Shape::Scalar && !layout.scalars.iter().any(|s| s.value == r) {
+            let complex = ty.elem == Elem::Complex;
+            layout.scalars.push(ScalarSlot { value: r, slot: layout.scalar_slots, complex });
+            layout.scalar_slots += if complex { 2 } else { 1 };
+        }
+    }
+    let mut fbc = FunctionBuilderContext::new();
+    {
+        let b = FunctionBuilder::new(&mut ctx.func, &mut fbc);
+        let mut g = Gen { func, b, module: &mut module, layout: &layout, sched: &sched, vals: HashMap::new(), imports: HashMap::new(), ptr, bufs: Vec::new(), ft: if func.precision == Precision::F32 { types::F32 } else { types::F64 }, sincos_slot: None };
+        g.emit_body()?;
+        g.b.seal_all_blocks();
+        let cfg = g.module.target_config();
+        g.b.finalize(cfg);
+    }
+    let clif = ctx.func.display().to_string();
+    let clif_insts = ctx.func.dfg.num_insts();
+    module.define_function(id, &mut ctx).map_err(|e| CodegenError(format!("{e:?}")))?;
+    module.clear_context(&mut ctx);
+    module.finalize_definitions().map_err(|e| err(&e))?;
+    let code = module.get_finalized_function(id);
+    // SAFETY: `code` is the finalized function with the signature declared above.
+    let entry: KernelFn = unsafe { std::mem::transmute::<*const u8, KernelFn>(code) };
+    Ok(Kernel { module: Some(module), entry, layout, clif, clif_insts })
+}
+
+struct Gen<'a> {
+    func: &'a Function,
+    b: FunctionBuilder<'a>,
+    module: &'a mut JITModule,
+    layout: &'a Layout,
+    sched: &'a Schedule,
+    /// Scalars and reduction results (valid everywhere after definition).
+    vals: HashMap<usize, Cv>,
+    imports: HashMap<&'static str, FuncRef>,
+    ptr: Type,
+    bufs: Vec<cranelift_codegen::ir::Value>,
+    ft: Type,
+    sincos_slot: Option<cranelift_codegen::ir::StackSlot>,
+}
+
+/// Per-iteration state of one loop.
+struct LoopCtx {
+    epoch: u32,
+    index: cranelift_codegen::ir::Value,
+    vals: HashMap<usize, Cv>,
+}
+
+impl<'a> Gen<'a> {
+    fn f32(&self) -> bool {
+        self.ft == types::F32
+    }
+
+    fn fconst(&mut self, x: f64) -> cranelift_codegen::ir::Value {
+        if self.f32() {
+            self.b.ins().f32const(x as f32)
+        } else {
+            self.b.ins().f64const(x)
+        }
+    }
+
+    fn import(&mut self, name: &'static str) -> Result<FuncRef, CodegenError> {
+        if let Some(f) = self.imports.get(name) {
+            return Ok(*f);
+        }
+        let ft = self.ft;
+        let mut sig = Signature::new(self.module.isa().default_call_conv());
+        let base = name.strip_suffix('f').filter(|b| MATH1.contains(b) || MATH2.contains(b) || *b == "sincos").unwrap_or(name);
+        if base == "sincos" {
+            sig.params.push(AbiParam::new(ft));
+            sig.params.push(AbiParam::new(self.ptr));
+            sig.params.push(AbiParam::new(self.ptr));
+        } else {
+            let arity = if MATH2.contains(&base) { 2 } else { 1 };
+            for _ in 0..arity {
+                sig.params.push(AbiParam::new(ft));
+            }
+            sig.returns.push(AbiParam::new(ft));
+        }
+        let id = self.module.declare_function(name, Linkage::Import, &sig).map_err(|e| CodegenError(e.to_string()))?;
+        let f = self.module.declare_func_in_func(id, self.b.func);
+        self.imports.insert(name, f);
+        Ok(f)
+    }
+
+    fn call(&mut self, base: &'static str, args: &[cranelift_codegen::ir::Value]) -> Result<cranelift_codegen::ir::Value, CodegenError> {
+        let name: &'static str = if self.f32() { f32_name(base) } else { base };
+        let f = self.import(name)?;
+        let c = self.b.ins().call(f, args);
+        Ok(self.b.inst_results(c)[0])
+    }
+
+    fn sincos(&mut self, x: cranelift_codegen::ir::Value) -> Result<(cranelift_codegen::ir::Value, cranelift_codegen::ir::Value), CodegenError> {
+        let slot = match self.sincos_slot {
+            Some(s) => s,
+            None => {
+                let s = self.b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 3));
+                self.sincos_slot = Some(s);
+                s
+            }
+        };
+        let name = if self.f32() { "sincosf" } else { "sincos" };
+        let f = self.import(name)?;
+        let size = self.ft.bytes() as i32;
+        let ps = self.b.ins().stack_addr(self.ptr, slot, 0);
+        let pc = self.b.ins().stack_addr(self.ptr, slot, size);
+        self.b.ins().call(f, &[x, ps, pc]);
+        let s = self.b.ins().stack_load(self.ptr, self.ft, slot, 0);
+        let c = self.b.ins().stack_load(self.ptr, self.ft, slot, size);
+        Ok((s, c))
+    }
+
+    fn emit_body(&mut self) -> Result<(), CodegenError> {
+        let entry = self.b.create_block();
+        self.b.append_block_params_for_function_params(entry);
+        self.b.switch_to_block(entry);
+        let params = self.b.block_params(entry).to_vec();
+        let (params_ptr, bufs_ptr, scalars_ptr) = (params[0], params[1], params[2]);
+        let flags = MemFlagsData::trusted();
+        for k in 0..self.layout.buffers.len() {
+            let p = self.b.ins().load(self.ptr, flags, bufs_ptr, (k * self.ptr.bytes() as usize) as i32);
+            self.bufs.push(p);
+        }
+        let max_epoch = self.sched.scalars.len();
+        for e in 0..max_epoch {
+            for &i in &self.sched.scalars[e] {
+                let v = self.scalar_inst(i, params_ptr)?;
+                self.vals.insert(i, v);
+            }
+            let loops: Vec<usize> = (0..self.sched.loops.len()).filter(|l| self.sched.loops[*l].0 as usize == e).collect();
+            for l in loops {
+                self.emit_loop(l)?;
+            }
+        }
+        // Scalar results, widened to f64.
+        for s in &self.layout.scalars {
+            let v = self.vals[&s.value.index()];
+            let re = self.widen(v.re);
+            self.b.ins().store(flags, re, scalars_ptr, (s.slot * 8) as i32);
+            if s.complex {
+                let im = v.im.unwrap_or(v.re);
+                let im = self.widen(im);
+                self.b.ins().store(flags, im, scalars_ptr, (s.slot * 8 + 8) as i32);
+            }
+        }
+        self.b.ins().return_(&[]);
+        Ok(())
+    }
+
+    fn widen(&mut self, v: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
+        if self.f32() {
+            self.b.ins().fpromote(types::F64, v)
+        } else {
+            v
+        }
+    }
+
+    fn narrow(&mut self, v: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
+        if self.f32() {
+            self.b.ins().fdemote(types::F32, v)
+        } else {
+            v
+        }
+    }
+
+    fn scalar_inst(&mut self, i: usize, params_ptr: cranelift_codegen::ir::Value) -> Result<Cv, CodegenError> {
+        let inst = self.func.insts[i];
+        Ok(match inst.op {
+            Op::Const(b) => Cv::real(self.fconst(f64::from_bits(b))),
+            Op::ConstComplex(r, im) => {
+                let re = self.fconst(f64::from_bits(r));
+                let im = self.fconst(f64::from_bits(im));
+                Cv { re, im: Some(im) }
+            }
+            Op::Param(p) => {
+                let v = self.b.ins().load(types::F64, MemFlagsData::trusted(), params_ptr, (p * 8) as i32);
+                Cv::real(self.narrow(v))
+            }
+            Op::Input(k) => {
+                let zero = self.b.ins().iconst(types::I64, 0);
+                self.load_elem(k as usize, zero, inst.ty.elem == Elem::Complex)
+            }
+            op => {
+                let mut get = |v: Value| self.vals[&v.index()];
+                let ops: Vec<Cv> = op.operands().into_iter().map(&mut get).collect();
+                self.elementwise(inst, &ops, None)?
+            }
+        })
+    }
+
+    fn load_elem(&mut self, buf: usize, index: cranelift_codegen::ir::Value, complex: bool) -> Cv {
+        let size = self.ft.bytes() as i64 * if complex { 2 } else { 1 };
+        let off = self.b.ins().imul_imm_s(index, size);
+        let addr = self.b.ins().iadd(self.bufs[buf], off);
+        let flags = MemFlagsData::trusted();
+        let re = self.b.ins().load(self.ft, flags, addr, 0);
+        let im = complex.then(|| self.b.ins().load(self.ft, flags, addr, self.ft.bytes() as i32));
+        Cv { re, im }
+    }
+
+    fn store_elem(&mut self, buf: usize, index: cranelift_codegen::ir::Value, v: Cv, complex: bool) {
+        let size = self.ft.bytes() as i64 * if complex { 2 } else { 1 };
+        let off = self.b.ins().imul_imm_s(index, size);
+        let addr = self.b.ins().iadd(self.bufs[buf], off);
+        let flags = MemFlagsData::trusted();
+        self.b.ins().store(flags, v.re, addr, 0);
+        if complex {
+            let im = v.im.expect("complex value has an imaginary part");
+            self.b.ins().store(flags, im, addr, self.ft.bytes() as i32);
+        }
+    }
+
+    fn emit_loop(&mut self, l: usize) -> Result<(), CodegenError> {
+        let (_, grid, ref members) = self.sched.loops[l];
+        let members = members.clone();
+        let len = self.func.grids[grid.0 as usize].len as i64;
+        // Accumulators of reductions (f64 even in f32 mode).
+        let mut accs: Vec<(usize, Variable, Option<Variable>)> = Vec::new();
+        for &m in &members {
+            if let Op::Reduce(r, a) = self.func.insts[m].op {
+                let complex = self.func.ty(a).elem == Elem::Complex;
+                let init = if r == Reduce::Max { f64::NEG_INFINITY } else { 0.0 };
+                let re = self.b.declare_var(types::F64);
+                let v = self.b.ins().f64const(init);
+                self.b.def_var(re, v);
+                let im = complex.then(|| {
+                    let im = self.b.declare_var(types::F64);
+                    let z = self.b.ins().f64const(0.0);
+                    self.b.def_var(im, z);
+                    im
+                });
+                accs.push((m, re, im));
+            }
+        }
+        let ivar = self.b.declare_var(types::I64);
+        let zero = self.b.ins().iconst(types::I64, 0);
+        self.b.def_var(ivar, zero);
+        let header = self.b.create_block();
+        let body = self.b.create_block();
+        let exit = self.b.create_block();
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(header);
+        let i = self.b.use_var(ivar);
+        let more = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, i, len);
+        self.b.ins().brif(more, body, &[], exit, &[]);
+        self.b.switch_to_block(body);
+        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: i, vals: HashMap::new() };
+        for &m in &members {
+            let inst = self.func.insts[m];
+            if let Op::Reduce(r, a) = inst.op {
+                let x = self.loop_operand(&mut lc, a)?;
+                let (_, re_var, im_var) = *accs.iter().find(|(k, ..)| *k == m).expect("accumulator declared");
+                let acc = self.b.use_var(re_var);
+                let xr = self.widen(x.re);
+                let next = if r == Reduce::Max { self.b.ins().fmax(acc, xr) } else { self.b.ins().fadd(acc, xr) };
+                self.b.def_var(re_var, next);
+                if let (Some(iv), Some(xi)) = (im_var, x.im) {
+                    let acc = self.b.use_var(iv);
+                    let xi = self.widen(xi);
+                    let next = self.b.ins().fadd(acc, xi);
+                    self.b.def_var(iv, next);
+                }
+                continue;
+            }
+            let v = self.loop_operand(&mut lc, Value(m as u32))?;
+            if let Some(&buf) = self.sched.stored.get(&m) {
+                self.store_elem(buf, lc.index, v, inst.ty.elem == Elem::Complex);
+            }
+        }
+        let next = self.b.ins().iadd_imm_s(i, 1);
+        self.b.def_var(ivar, next);
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(exit);
+        for (m, re_var, im_var) in accs {
+            let re = self.b.use_var(re_var);
+            let re = self.narrow(re);
+            let im = im_var.map(|v| {
+                let x = self.b.use_var(v);
+                self.narrow(x)
+            });
+            self.vals.insert(m, Cv { re, im });
+        }
+        Ok(())
+    }
+
+    /// The value of `v` inside the current loop iteration.
+    fn loop_operand(&mut self, lc: &mut LoopCtx, v: Value) -> Result<Cv, CodegenError> {
+        let i = v.index();
+        if let Some(x) = lc.vals.get(&i) {
+            return Ok(*x);
+        }
+        let inst = self.func.insts[i];
+        if inst.ty.shape == Shape::Scalar {
+            return Ok(self.vals[&i]);
+        }
+        let x = match inst.op {
+            Op::Broadcast(a, _) => self.vals[&a.index()],
+            Op::GridCoord(g) => {
+                let grid = &self.func.grids[g.0 as usize];
+                let (start, step) = (grid.start, grid.step);
+                let fi = self.b.ins().fcvt_from_sint(types::F64, lc.index);
+                let st = self.b.ins().f64const(step);
+                let s0 = self.b.ins().f64const(start);
+                let prod = self.b.ins().fmul(fi, st);
+                let x = self.b.ins().fadd(s0, prod);
+                Cv::real(self.narrow(x))
+            }
+            Op::Input(k) => self.load_elem(k as usize, lc.index, inst.ty.elem == Elem::Complex),
+            // Stored by an earlier loop: reload instead of recomputing.
+            _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < lc.epoch => {
+                let buf = self.sched.stored[&i];
+                self.load_elem(buf, lc.index, inst.ty.elem == Elem::Complex)
+            }
+            op => {
+                let mut ops = Vec::new();
+                for o in op.operands() {
+                    ops.push(self.loop_operand(lc, o)?);
+                }
+                self.elementwise(inst, &ops, Some(lc))?
+            }
+        };
+        lc.vals.insert(i, x);
+        Ok(x)
+    }
+
+    /// Emits one elementwise operation on already-computed operands.
+    fn elementwise(&mut self, inst: Inst, ops: &[Cv], _lc: Option<&mut LoopCtx>) -> Result<Cv, CodegenError> {
+        let ins_complex = |k: usize| ops.get(k).is_some_and(|o| o.im.is_some());
+        Ok(match inst.op {
+            Op::Unary(u, _) => {
+                let a = ops[0];
+                let x = a.re;
+                match u {
+                    UnOp::Neg => Cv { re: self.b.ins().fneg(x), im: a.im.map(|i| self.b.ins().fneg(i)) },
+                    UnOp::Sqrt => Cv::real(self.b.ins().sqrt(x)),
+                    UnOp::Cbrt => Cv::real(self.call("cbrt", &[x])?),
+                    UnOp::Exp if ins_complex(0) => {
+                        let e = self.call("exp", &[x])?;
+                        let (s, c) = self.sincos(a.im.expect("complex"))?;
+                        Cv { re: self.b.ins().fmul(e, c), im: Some(self.b.ins().fmul(e, s)) }
+                    }
+                    UnOp::Exp => Cv::real(self.call("exp", &[x])?),
+                    UnOp::Log => Cv::real(self.call("log", &[x])?),
+                    UnOp::Sin => Cv::real(self.call("sin", &[x])?),
+                    UnOp::Cos => Cv::real(self.call("cos", &[x])?),
+                    UnOp::Tan => Cv::real(self.call("tan", &[x])?),
+                    UnOp::Tanh => Cv::real(self.call("tanh", &[x])?),
+                    UnOp::Abs if ins_complex(0) => {
+                        let im = a.im.expect("complex");
+                        let rr = self.b.ins().fmul(x, x);
+                        let ii = self.b.ins().fmul(im, im);
+                        let s = self.b.ins().fadd(rr, ii);
+                        Cv::real(self.b.ins().sqrt(s))
+                    }
+                    UnOp::Abs => Cv::real(self.b.ins().fabs(x)),
+                    UnOp::Sign => {
+                        // 1 for x > 0, -1 for x < 0, x * 0 otherwise (keeps ±0 and NaN).
+                        let one = self.fconst(1.0);
+                        let mone = self.fconst(-1.0);
+                        let zero = self.fconst(0.0);
+                        let z = self.b.ins().fmul(x, zero);
+                        let pos = self.b.ins().fcmp(FloatCC::GreaterThan, x, zero);
+                        let neg = self.b.ins().fcmp(FloatCC::LessThan, x, zero);
+                        let t = self.b.ins().select(neg, mone, z);
+                        Cv::real(self.b.ins().select(pos, one, t))
+                    }
+                    UnOp::Re => Cv::real(x),
+                    UnOp::Im => Cv::real(a.im.expect("complex")),
+                    UnOp::Conj => Cv { re: x, im: a.im.map(|i| self.b.ins().fneg(i)) },
+                    UnOp::Abs2 => {
+                        let im = a.im.expect("complex");
+                        let rr = self.b.ins().fmul(x, x);
+                        let ii = self.b.ins().fmul(im, im);
+                        Cv::real(self.b.ins().fadd(rr, ii))
+                    }
+                    UnOp::Cis => {
+                        let (s, c) = self.sincos(x)?;
+                        Cv { re: c, im: Some(s) }
+                    }
+                    UnOp::ToComplex => Cv { re: x, im: Some(self.fconst(0.0)) },
+                }
+            }
+            Op::Binary(op, _, _) => {
+                let (a, c) = (ops[0], ops[1]);
+                let complex = a.im.is_some();
+                match op {
+                    BinOp::Add => Cv { re: self.b.ins().fadd(a.re, c.re), im: complex.then(|| self.b.ins().fadd(a.im.expect("complex"), c.im.expect("complex"))) },
+                    BinOp::Sub => Cv { re: self.b.ins().fsub(a.re, c.re), im: complex.then(|| self.b.ins().fsub(a.im.expect("complex"), c.im.expect("complex"))) },
+                    BinOp::Mul if complex => {
+                        let (ar, ai, cr, ci) = (a.re, a.im.expect("complex"), c.re, c.im.expect("complex"));
+                        let rr = self.b.ins().fmul(ar, cr);
+                        let ii = self.b.ins().fmul(ai, ci);
+                        let ri = self.b.ins().fmul(ar, ci);
+                        let ir = self.b.ins().fmul(ai, cr);
+                        Cv { re: self.b.ins().fsub(rr, ii), im: Some(self.b.ins().fadd(ri, ir)) }
+                    }
+                    BinOp::Mul => Cv::real(self.b.ins().fmul(a.re, c.re)),
+                    BinOp::Div if complex => {
+                        // a * conj(c) / |c|^2, as in eval::complex_div.
+                        let (ar, ai, cr, ci) = (a.re, a.im.expect("complex"), c.re, c.im.expect("complex"));
+                        let cc = self.b.ins().fmul(cr, cr);
+                        let dd = self.b.ins().fmul(ci, ci);
+                        let d = self.b.ins().fadd(cc, dd);
+                        let rr = self.b.ins().fmul(ar, cr);
+                        let ii = self.b.ins().fmul(ai, ci);
+                        let num_re = self.b.ins().fadd(rr, ii);
+                        let ir = self.b.ins().fmul(ai, cr);
+                        let ri = self.b.ins().fmul(ar, ci);
+                        let num_im = self.b.ins().fsub(ir, ri);
+                        Cv { re: self.b.ins().fdiv(num_re, d), im: Some(self.b.ins().fdiv(num_im, d)) }
+                    }
+                    BinOp::Div => Cv::real(self.b.ins().fdiv(a.re, c.re)),
+                    BinOp::Pow => Cv::real(self.call("pow", &[a.re, c.re])?),
+                    BinOp::Atan2 => Cv::real(self.call("atan2", &[a.re, c.re])?),
+                    BinOp::Min => Cv::real(self.b.ins().fmin(a.re, c.re)),
+                    BinOp::Max => Cv::real(self.b.ins().fmax(a.re, c.re)),
+                    BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge => {
+                        let cc = match op {
+                            BinOp::Lt => FloatCC::LessThan,
+                            BinOp::Le => FloatCC::LessThanOrEqual,
+                            BinOp::Gt => FloatCC::GreaterThan,
+                            _ => FloatCC::GreaterThanOrEqual,
+                        };
+                        Cv::real(self.b.ins().fcmp(cc, a.re, c.re))
+                    }
+                    BinOp::Eq | BinOp::Ne => {
+                        let cc = if op == BinOp::Eq { FloatCC::Equal } else { FloatCC::NotEqual };
+                        let r = self.b.ins().fcmp(cc, a.re, c.re);
+                        match (a.im, c.im) {
+                            (Some(ai), Some(ci)) => {
+                                let i = self.b.ins().fcmp(cc, ai, ci);
+                                Cv::real(if op == BinOp::Eq { self.b.ins().band(r, i) } else { self.b.ins().bor(r, i) })
+                            }
+                            _ => Cv::real(r),
+                        }
+                    }
+                    BinOp::Complex => Cv { re: a.re, im: Some(c.re) },
+                }
+            }
+            Op::PowConst(_, bits) => Cv::real(self.pow_const(ops[0].re, f64::from_bits(bits))?),
+            Op::Select(..) => {
+                let (c, x, y) = (ops[0].re, ops[1], ops[2]);
+                let re = self.b.ins().select(c, x.re, y.re);
+                let im = match (x.im, y.im) {
+                    (Some(xi), Some(yi)) => Some(self.b.ins().select(c, xi, yi)),
+                    _ => None,
+                };
+                Cv { re, im }
+            }
+            Op::Broadcast(..) => ops[0],
+            other => return Err(CodegenError(format!("unexpected operation in elementwise code: {other:?}"))),
+        })
+    }
+
+    /// `x^c`: repeated multiplication for small integer c, sqrt for ±1/2,
+    /// otherwise a call to `pow`.
+    fn pow_const(&mut self, x: cranelift_codegen::ir::Value, c: f64) -> Result<cranelift_codegen::ir::Value, CodegenError> {
+        if c == c.trunc() && c.abs() <= 16.0 {
+            let n = c.abs() as u32;
+            let mut result: Option<cranelift_codegen::ir::Value> = None;
+            let mut base = x;
+            let mut k = n;
+            while k > 0 {
+                if k & 1 == 1 {
+                    result = Some(match result {
+                        Some(r) => self.b.ins().fmul(r, base),
+                        None => base,
+                    });
+                }
+                k >>= 1;
+                if k > 0 {
+                    base = self.b.ins().fmul(base, base);
+                }
+            }
+            let r = match result {
+                Some(r) => r,
+                None => self.fconst(1.0),
+            };
+            return Ok(if c < 0.0 {
+                let one = self.fconst(1.0);
+                self.b.ins().fdiv(one, r)
+            } else {
+                r
+            });
+        }
+        if c == 0.5 {
+            return Ok(self.b.ins().sqrt(x));
+        }
+        let e = self.fconst(c);
+        self.call("pow", &[x, e])
+    }
+}
+
+fn f32_name(base: &'static str) -> &'static str {
+    match base {
+        "cbrt" => "cbrtf",
+        "exp" => "expf",
+        "log" => "logf",
+        "sin" => "sinf",
+        "cos" => "cosf",
+        "tan" => "tanf",
+        "tanh" => "tanhf",
+        "pow" => "powf",
+        "atan2" => "atan2f",
+        "sincos" => "sincosf",
+        other => other,
+    }
+}
