@@ -1,1 +1,118 @@
-fn main(){}
+//! The `gwml` command-line tool.
+
+mod commands;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// gwml: a differentiable modelling language and compiler for
+/// gravitational-wave data analysis.
+#[derive(Parser)]
+#[command(name = "gwml", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Check a model, differentiate it, JIT-compile it and report.
+    Compile(CompileArgs),
+    /// Evaluate a scene's outputs (and gradients with --grad).
+    Run(RunArgs),
+}
+
+/// Which stage's text to print.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Emit {
+    /// The parsed syntax tree.
+    Ast,
+    /// The scene's IR, pruned to what its outputs need.
+    Ir,
+    /// Forward and adjoint IR after simplification (what the gradient kernel runs).
+    Adjoint,
+    /// Cranelift IR of the kernel (the gradient kernel if the scene asks for gradients).
+    Clif,
+}
+
+/// Floating-point precision of generated code.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum PrecisionArg {
+    /// 64-bit.
+    F64,
+    /// 32-bit (reductions still accumulate in 64-bit).
+    F32,
+}
+
+/// How `run` prints results.
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+pub enum Format {
+    /// Aligned, human-readable.
+    Text,
+    /// `{"params": {...}, "outputs": {...}, "grads": {OUTPUT: {PARAM: value}}}`.
+    Json,
+}
+
+#[derive(clap::Args)]
+pub struct CompileArgs {
+    /// The .gw file.
+    pub file: PathBuf,
+    /// Scene to compile (optional when the file has one scene).
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Print one stage's output instead of the summary.
+    #[arg(long, value_enum)]
+    pub emit: Option<Emit>,
+    /// Override the scene's precision knob.
+    #[arg(long, value_enum)]
+    pub precision: Option<PrecisionArg>,
+    /// Print op counts per stage, kernel counts and compile time per stage.
+    #[arg(long)]
+    pub stats: bool,
+}
+
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// The .gw file.
+    pub file: PathBuf,
+    /// Scene to run (optional when the file has one scene).
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Set a param, in its declared unit: `--set mc=30`.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`.
+    #[arg(long = "input", value_name = "NAME=PATH.npy")]
+    pub input: Vec<String>,
+    /// Write an array output to a .npy file: `--output h=h.npy`.
+    #[arg(long = "output", value_name = "NAME=PATH.npy")]
+    pub output: Vec<String>,
+    /// Also compute the gradients the scene declares (one fused kernel).
+    #[arg(long)]
+    pub grad: bool,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: Format,
+    /// Override the scene's precision knob.
+    #[arg(long, value_enum)]
+    pub precision: Option<PrecisionArg>,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Compile(a) => commands::compile(a),
+        Command::Run(a) => commands::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(msg) => {
+            eprint!("{msg}");
+            if !msg.ends_with('\n') {
+                eprintln!();
+            }
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -29,7 +29,11 @@ pub fn adjoint(func: &Function) -> Function {
             continue;
         }
         outputs_done.push(out);
-        let params: Vec<u32> = grads.iter().filter(|g| g.output == out).map(|g| g.param as u32).collect();
+        let params: Vec<u32> = grads
+            .iter()
+            .filter(|g| g.output == out)
+            .map(|g| g.param as u32)
+            .collect();
         // Forward activity.
         let mut active = vec![false; n];
         for (i, inst) in func.insts.iter().enumerate() {
@@ -46,7 +50,9 @@ pub fn adjoint(func: &Function) -> Function {
             adj.insert(root.index(), one);
         }
         for i in (0..n).rev() {
-            let Some(g) = adj.get(&i).copied() else { continue };
+            let Some(g) = adj.get(&i).copied() else {
+                continue;
+            };
             let inst = func.insts[i];
             for (operand, contribution) in rule(&mut b, inst, Value(i as u32), g) {
                 if !active[operand.index()] {
@@ -85,9 +91,17 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
         let ty = b.ty(like);
         b.constant(C64::new(1.0, 0.0), ty)
     };
-    let conj = |b: &mut Builder, v: Value| if b.ty(v).elem == Elem::Complex { b.unary(UnOp::Conj, v) } else { v };
+    let conj = |b: &mut Builder, v: Value| {
+        if b.ty(v).elem == Elem::Complex {
+            b.unary(UnOp::Conj, v)
+        } else {
+            v
+        }
+    };
     match inst.op {
-        Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) => vec![],
+        Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) => {
+            vec![]
+        }
         Op::Unary(u, a) => {
             let c = match u {
                 UnOp::Neg => b.neg(g),
@@ -117,7 +131,11 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
                 UnOp::Tan | UnOp::Tanh => {
                     let zz = b.mul(z, z);
                     let o = one(b, z);
-                    let d = if u == UnOp::Tan { b.add(o, zz) } else { b.sub(o, zz) };
+                    let d = if u == UnOp::Tan {
+                        b.add(o, zz)
+                    } else {
+                        b.sub(o, zz)
+                    };
                     b.mul(g, d)
                 }
                 UnOp::Abs if b.ty(a).elem == Elem::Complex => {
@@ -200,7 +218,11 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
                 vec![(x, gx), (y, gy)]
             }
             BinOp::Min | BinOp::Max => {
-                let cmp = if op == BinOp::Min { BinOp::Le } else { BinOp::Ge };
+                let cmp = if op == BinOp::Min {
+                    BinOp::Le
+                } else {
+                    BinOp::Ge
+                };
                 let c = b.binary(cmp, x, y);
                 let zero = b.zero(b.ty(g));
                 let gx = b.emit(Op::Select(c, g, zero));
@@ -228,11 +250,15 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
         }
         Op::Broadcast(a, _) => vec![(a, b.emit(Op::Reduce(Reduce::Sum, g)))],
         Op::Reduce(Reduce::Sum, a) => {
-            let Shape::Grid(grid) = b.ty(a).shape else { return vec![] };
+            let Shape::Grid(grid) = b.ty(a).shape else {
+                return vec![];
+            };
             vec![(a, b.emit(Op::Broadcast(g, grid)))]
         }
         Op::Reduce(Reduce::Max, a) => {
-            let Shape::Grid(grid) = b.ty(a).shape else { return vec![] };
+            let Shape::Grid(grid) = b.ty(a).shape else {
+                return vec![];
+            };
             let zb = b.emit(Op::Broadcast(z, grid));
             let hit = b.binary(BinOp::Eq, a, zb);
             let gb = b.emit(Op::Broadcast(g, grid));

@@ -1,0 +1,288 @@
+//! The `gwml` subcommands. Each returns `Err(message)` for the user.
+
+use crate::{CompileArgs, Emit, Format, PrecisionArg, RunArgs};
+use gwml::compiler::ir::Precision;
+use gwml::compiler::syntax::print_ast;
+use gwml::compiler::Options;
+use gwml::{Error, Model, Value};
+use serde_json::{json, Map};
+use std::io::IsTerminal;
+use std::path::Path;
+use std::time::Instant;
+
+fn render(e: Error) -> String {
+    match e {
+        Error::Compile(c) => c.render(std::io::stderr().is_terminal()),
+        other => format!("error: {other}"),
+    }
+}
+
+fn options(p: Option<PrecisionArg>) -> Options {
+    Options {
+        precision: p.map(|p| match p {
+            PrecisionArg::F64 => Precision::F64,
+            PrecisionArg::F32 => Precision::F32,
+        }),
+    }
+}
+
+/// `gwml compile`.
+pub fn compile(a: CompileArgs) -> Result<(), String> {
+    let t0 = Instant::now();
+    let model = Model::from_file(&a.file).map_err(render)?;
+    let t_check = t0.elapsed();
+    if let Some(Emit::Ast) = a.emit {
+        print!("{}", print_ast(&model.program.ast));
+        return Ok(());
+    }
+    let t1 = Instant::now();
+    let scene = model
+        .scene_with(a.scene.as_deref(), options(a.precision))
+        .map_err(render)?;
+    let t_fwd = t1.elapsed();
+    let has_grads = !scene.ir().grads.is_empty();
+    let t2 = Instant::now();
+    let grad_kernel = if has_grads {
+        Some(scene.gradient_kernel().map_err(render)?)
+    } else {
+        None
+    };
+    let t_grad = t2.elapsed();
+    match a.emit {
+        Some(Emit::Ir) => print!("{}", scene.pipeline.pruned),
+        Some(Emit::Adjoint) => print!("{}", scene.pipeline.optimized),
+        Some(Emit::Clif) => print!("{}", grad_kernel.unwrap_or(scene.forward_kernel()).clif),
+        Some(Emit::Ast) | None => {
+            let f = scene.ir();
+            println!(
+                "scene {}: {} param{}, {} input{}, {} output{}, {} gradient{} (precision {})",
+                f.name,
+                f.params.len(),
+                plural(f.params.len()),
+                f.inputs.len(),
+                plural(f.inputs.len()),
+                f.outputs.len(),
+                plural(f.outputs.len()),
+                f.grads.len(),
+                plural(f.grads.len()),
+                f.precision
+            );
+        }
+    }
+    if a.stats {
+        let s = &scene.pipeline.stats;
+        let fk = scene.forward_kernel();
+        println!(
+            "ops: checked {}, pruned {}, adjoint {}, optimized {} (forward only: {})",
+            s.checked_ops,
+            s.pruned_ops,
+            s.adjoint_ops,
+            s.optimized_ops,
+            scene.forward_ir().insts.len()
+        );
+        println!(
+            "kernels: forward {} fused loop{} ({} clif insts)",
+            fk.layout.loops,
+            plural(fk.layout.loops),
+            fk.clif_insts
+        );
+        if let Some(g) = grad_kernel {
+            println!(
+                "         forward+gradient {} fused loop{} ({} clif insts), {} scratch array{}",
+                g.layout.loops,
+                plural(g.layout.loops),
+                g.clif_insts,
+                scratch(g),
+                plural(scratch(g))
+            );
+        }
+        let mut times = vec![("parse+check".to_string(), t_check)];
+        times.extend(s.times.iter().map(|(n, t)| (n.to_string(), *t)));
+        times.push((
+            "codegen forward".into(),
+            t_fwd.saturating_sub(s.times.iter().map(|t| t.1).sum()),
+        ));
+        if has_grads {
+            times.push(("codegen gradient".into(), t_grad));
+        }
+        let line: Vec<String> = times
+            .iter()
+            .map(|(n, t)| format!("{n} {:.3} ms", t.as_secs_f64() * 1e3))
+            .collect();
+        println!("time: {}", line.join(", "));
+    }
+    Ok(())
+}
+
+fn scratch(k: &gwml::compiler::codegen::Kernel) -> usize {
+    k.layout
+        .buffers
+        .iter()
+        .filter(|b| b.kind == gwml::compiler::codegen::BufferKind::Scratch)
+        .count()
+}
+
+fn plural(n: usize) -> &'static str {
+    if n == 1 {
+        ""
+    } else {
+        "s"
+    }
+}
+
+fn split_pair<'a>(s: &'a str, flag: &str) -> Result<(&'a str, &'a str), String> {
+    s.split_once('=')
+        .map(|(a, b)| (a.trim(), b.trim()))
+        .filter(|(a, b)| !a.is_empty() && !b.is_empty())
+        .ok_or_else(|| format!("error: {flag} expects NAME=VALUE, got `{s}`"))
+}
+
+/// `gwml run`.
+pub fn run(a: RunArgs) -> Result<(), String> {
+    let model = Model::from_file(&a.file).map_err(render)?;
+    let scene = model
+        .scene_with(a.scene.as_deref(), options(a.precision))
+        .map_err(render)?;
+    let mut run = scene.bind();
+    for s in &a.set {
+        let (name, value) = split_pair(s, "--set")?;
+        let v: f64 = value
+            .parse()
+            .map_err(|_| format!("error: --set {name}: `{value}` is not a number"))?;
+        run.param(name, v).map_err(render)?;
+    }
+    for s in &a.input {
+        let (name, path) = split_pair(s, "--input")?;
+        let data = gwml::npy::read(Path::new(path)).map_err(render)?;
+        if data.complex {
+            run.input_complex(name, &data.values).map_err(render)?;
+        } else {
+            let re: Vec<f64> = data.values.iter().map(|z| z.re).collect();
+            run.input_real(name, &re).map_err(render)?;
+        }
+    }
+    let out = if a.grad {
+        run.value_and_grad()
+    } else {
+        run.forward()
+    }
+    .map_err(render)?;
+    let mut written = Vec::new();
+    for s in &a.output {
+        let (name, path) = split_pair(s, "--output")?;
+        let path = Path::new(path);
+        match out.value(name).map_err(render)? {
+            Value::RealArray(v) => gwml::npy::write_real(path, v),
+            Value::ComplexArray(v) => gwml::npy::write_complex(path, v),
+            Value::Real(x) => gwml::npy::write_real(path, &[*x]),
+            Value::Complex(z) => gwml::npy::write_complex(path, &[*z]),
+        }
+        .map_err(render)?;
+        written.push((name.to_string(), path.display().to_string()));
+    }
+    let f = scene.ir();
+    if a.format == Format::Json {
+        let params: Map<String, serde_json::Value> = out
+            .params
+            .iter()
+            .map(|(n, v)| (n.clone(), json!(v)))
+            .collect();
+        let mut outputs = Map::new();
+        for (n, v) in &out.values {
+            let file = written.iter().find(|(w, _)| w == n).map(|(_, p)| p.clone());
+            let j = match v {
+                Value::Real(x) => json!(x),
+                Value::Complex(z) => json!({"re": z.re, "im": z.im}),
+                Value::RealArray(a) => json!({"len": a.len(), "npy": file}),
+                Value::ComplexArray(a) => json!({"len": a.len(), "complex": true, "npy": file}),
+            };
+            outputs.insert(n.clone(), j);
+        }
+        let mut grads: Map<String, serde_json::Value> = Map::new();
+        for (o, p, g) in &out.grads {
+            let entry = grads.entry(o.clone()).or_insert_with(|| json!({}));
+            entry[p] = json!(g);
+        }
+        println!(
+            "{}",
+            serde_json::to_string_pretty(
+                &json!({"params": params, "outputs": outputs, "grads": grads})
+            )
+            .expect("JSON of numbers")
+        );
+        return Ok(());
+    }
+    println!("scene {} (precision {})", f.name, f.precision);
+    let w = out
+        .params
+        .iter()
+        .map(|p| p.0.len())
+        .chain(out.values.iter().map(|v| v.0.len()))
+        .max()
+        .unwrap_or(0);
+    if !out.params.is_empty() {
+        println!("params:");
+        for ((n, v), p) in out.params.iter().zip(&f.params) {
+            println!("  {n:w$} = {v} {}", unit(&p.unit));
+        }
+    }
+    println!("outputs:");
+    for ((n, v), o) in out.values.iter().zip(&f.outputs) {
+        let file = written
+            .iter()
+            .find(|(w, _)| w == n)
+            .map(|(_, p)| format!(" -> {p}"))
+            .unwrap_or_default();
+        let text = match v {
+            Value::Real(x) => format!("{x}"),
+            Value::Complex(z) => format!("{} {:+}i", z.re, z.im),
+            Value::RealArray(a) => summary(a.len(), a.iter().copied(), false),
+            Value::ComplexArray(a) => summary(a.len(), a.iter().map(|z| z.norm()), true),
+        };
+        println!("  {n:w$} = {text} {}{file}", unit(&o.unit));
+    }
+    if !out.grads.is_empty() {
+        println!("gradients:");
+        let gw = out
+            .grads
+            .iter()
+            .map(|(o, p, _)| o.len() + p.len() + 8)
+            .max()
+            .unwrap_or(0);
+        for ((o, p, g), pi) in out
+            .grads
+            .iter()
+            .zip(f.grads.iter().map(|g| &f.params[g.param]))
+        {
+            let label = format!("d{o}/d{p}");
+            println!(
+                "  {label:gw$} = {g} {}",
+                if pi.unit == "1" {
+                    String::new()
+                } else {
+                    format!("per {}", pi.unit)
+                }
+            );
+        }
+    }
+    Ok(())
+}
+
+fn unit(u: &str) -> String {
+    if u == "1" {
+        String::new()
+    } else {
+        format!("[{u}]")
+    }
+}
+
+fn summary(len: usize, xs: impl Iterator<Item = f64> + Clone, complex: bool) -> String {
+    let min = xs.clone().fold(f64::INFINITY, f64::min);
+    let max = xs.fold(f64::NEG_INFINITY, f64::max);
+    let what = if complex {
+        "complex array, |z|"
+    } else {
+        "array"
+    };
+    format!("{what} of {len}: min {min:.6e}, max {max:.6e} (write it with --output NAME=FILE.npy)")
+}
