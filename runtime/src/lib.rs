@@ -173,6 +173,7 @@ impl Scene {
             params: f.params.iter().map(|p| p.default).collect(),
             inputs: f.inputs.iter().map(|i| i.default.clone()).collect(),
             scratch: Vec::new(),
+            filled_for: None,
             scalars: Vec::new(),
         }
     }
@@ -283,6 +284,9 @@ pub struct Run<'s> {
     params: Vec<Option<f64>>,
     inputs: Vec<Option<Vec<C64>>>,
     scratch: Vec<(bool, Buffer)>,
+    /// Which kernel's layout `scratch` was filled for (forward or gradient),
+    /// or `None` when inputs changed since: input buffers are refilled only then.
+    filled_for: Option<*const Kernel>,
     scalars: Vec<f64>,
 }
 
@@ -358,6 +362,7 @@ impl<'s> Run<'s> {
             )));
         }
         self.inputs[i] = Some(data.into_iter().map(|z| z * info.scale).collect());
+        self.filled_for = None;
         Ok(self)
     }
 

@@ -1,0 +1,169 @@
+//! End-to-end tests: run the `gwml` binary on the examples and compare with
+//! independently computed values.
+
+mod common;
+
+use common::chirp_reference as reference;
+use std::process::Command;
+
+fn gwml(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_gwml"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("gwml runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn json(args: &[&str]) -> serde_json::Value {
+    let (ok, stdout, stderr) = gwml(args);
+    assert!(ok, "gwml {args:?} failed: {stderr}");
+    serde_json::from_str(&stdout).expect("valid JSON")
+}
+
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol * b.abs().max(1e-12)
+}
+
+#[test]
+fn run_chirp_fit_matches_hand_written_loss_and_gradient() {
+    let data = reference::default_data();
+    for (mc, tc, phic) in [(28.0, 0.0, 0.0), (30.5, 0.0021, 0.25), (12.0, -0.01, 1.0)] {
+        let (mcs, tcs, phics) = (
+            format!("mc={mc}"),
+            format!("tc={tc}"),
+            format!("phic={phic}"),
+        );
+        let j = json(&[
+            "run",
+            "examples/chirp_fit.gw",
+            "--grad",
+            "--format",
+            "json",
+            "--set",
+            &mcs,
+            "--set",
+            &tcs,
+            "--set",
+            &phics,
+        ]);
+        let (loss, grad) = reference::loss_and_grad(&data, mc, tc, phic);
+        let got = j["outputs"]["loss"].as_f64().unwrap();
+        assert!(close(got, loss, 1e-9), "loss {got} vs {loss}");
+        assert!(close(loss, reference::loss(&data, mc, tc, phic), 1e-12));
+        for (i, p) in ["mc", "tc", "phic"].iter().enumerate() {
+            let g = j["grads"]["loss"][p].as_f64().unwrap();
+            assert!(close(g, grad[i], 1e-7), "d/d{p}: {g} vs {}", grad[i]);
+        }
+        assert_eq!(j["params"]["mc"].as_f64(), Some(mc));
+    }
+}
+
+#[test]
+fn run_with_npy_input_and_output() {
+    let dir = std::env::temp_dir().join(format!("gwml-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let src = dir.join("model.gw");
+    std::fs::write(
+        &src,
+        "scene s {
+            grid t = times(rate: 8 Hz, duration: 1 s)
+            input x: real[t]
+            param a = 2.0
+            output y = a * x * x
+            output total = sum(y)
+            grad total wrt [a]
+        }",
+    )
+    .unwrap();
+    let xs: Vec<f64> = (0..8).map(|i| i as f64 * 0.5).collect();
+    let inp = dir.join("x.npy");
+    gwml::npy::write_real(&inp, &xs).unwrap();
+    let outp = dir.join("y.npy");
+    let j = json(&[
+        "run",
+        src.to_str().unwrap(),
+        "--input",
+        &format!("x={}", inp.display()),
+        "--output",
+        &format!("y={}", outp.display()),
+        "--grad",
+        "--format",
+        "json",
+    ]);
+    let sum_sq: f64 = xs.iter().map(|x| x * x).sum();
+    assert!(close(
+        j["outputs"]["total"].as_f64().unwrap(),
+        2.0 * sum_sq,
+        1e-14
+    ));
+    assert!(close(
+        j["grads"]["total"]["a"].as_f64().unwrap(),
+        sum_sq,
+        1e-14
+    ));
+    let y = gwml::npy::read(&outp).unwrap();
+    assert_eq!(y.values.len(), 8);
+    for (x, yv) in xs.iter().zip(&y.values) {
+        assert!(close(yv.re, 2.0 * x * x, 1e-15));
+    }
+}
+
+#[test]
+fn errors_are_reported_not_panics() {
+    let (ok, _, err) = gwml(&["run", "examples/chirp_fit.gw", "--set", "mcc=3"]);
+    assert!(!ok);
+    assert!(
+        err.contains("no param `mcc`") && err.contains("did you mean `mc`"),
+        "{err}"
+    );
+    let (ok, _, err) = gwml(&["run", "examples/chirp_fit.gw", "--set", "mc=500"]);
+    assert!(!ok);
+    assert!(err.contains("outside its bounds"), "{err}");
+    let (ok, _, err) = gwml(&["run", "does/not/exist.gw"]);
+    assert!(!ok);
+    assert!(err.contains("cannot read"), "{err}");
+    let (ok, _, err) = gwml(&["compile", "examples/chirp_fit.gw", "--scene", "chirp_fti"]);
+    assert!(!ok);
+    assert!(err.contains("did you mean `chirp_fit`"), "{err}");
+}
+
+#[test]
+fn compile_emits_every_stage_and_stats() {
+    for emit in ["ast", "ir", "adjoint", "clif"] {
+        let (ok, out, err) = gwml(&["compile", "examples/chirp_fit.gw", "--emit", emit]);
+        assert!(ok, "{err}");
+        assert!(!out.trim().is_empty(), "--emit {emit} printed nothing");
+    }
+    let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--stats"]);
+    assert!(ok);
+    assert!(
+        out.contains("ops: checked") && out.contains("fused loop") && out.contains("time:"),
+        "{out}"
+    );
+    let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--precision", "f32"]);
+    assert!(ok && out.contains("precision f32"), "{out}");
+}
+
+#[test]
+fn f32_run_agrees_with_f64() {
+    let a = json(&["run", "examples/chirp_fit.gw", "--grad", "--format", "json"]);
+    let b = json(&[
+        "run",
+        "examples/chirp_fit.gw",
+        "--grad",
+        "--format",
+        "json",
+        "--precision",
+        "f32",
+    ]);
+    let (x, y) = (
+        a["outputs"]["loss"].as_f64().unwrap(),
+        b["outputs"]["loss"].as_f64().unwrap(),
+    );
+    assert!(close(y, x, 1e-3), "f32 loss {y} vs f64 {x}");
+}
