@@ -36,10 +36,7 @@ fn main() -> Result<(), gwml::Error> {
         run.param("phic", phic)?;
         let out = run.value_and_grad()?;
         if step % 10 == 0 {
-            println!(
-                "step {step:2}: phic {phic:.6} loss {:.6e}",
-                out.scalar("loss")?
-            );
+            println!("step {step:2}: phic {phic:.6} loss {:.6e}", out.scalar("loss")?);
         }
         phic -= 0.002 * out.grad("loss", "phic")?;
     }

@@ -36,17 +36,11 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
         return Ok(());
     }
     let t1 = Instant::now();
-    let scene = model
-        .scene_with(a.scene.as_deref(), options(a.precision))
-        .map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.precision)).map_err(render)?;
     let t_fwd = t1.elapsed();
     let has_grads = !scene.ir().grads.is_empty();
     let t2 = Instant::now();
-    let grad_kernel = if has_grads {
-        Some(scene.gradient_kernel().map_err(render)?)
-    } else {
-        None
-    };
+    let grad_kernel = if has_grads { Some(scene.gradient_kernel().map_err(render)?) } else { None };
     let t_grad = t2.elapsed();
     match a.emit {
         Some(Emit::Ir) => print!("{}", scene.pipeline.pruned),
@@ -80,12 +74,7 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
             s.optimized_ops,
             scene.forward_ir().insts.len()
         );
-        println!(
-            "kernels: forward {} fused loop{} ({} clif insts)",
-            fk.layout.loops,
-            plural(fk.layout.loops),
-            fk.clif_insts
-        );
+        println!("kernels: forward {} fused loop{} ({} clif insts)", fk.layout.loops, plural(fk.layout.loops), fk.clif_insts);
         if let Some(g) = grad_kernel {
             println!(
                 "         forward+gradient {} fused loop{} ({} clif insts), {} scratch array{}",
@@ -98,28 +87,18 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
         }
         let mut times = vec![("parse+check".to_string(), t_check)];
         times.extend(s.times.iter().map(|(n, t)| (n.to_string(), *t)));
-        times.push((
-            "codegen forward".into(),
-            t_fwd.saturating_sub(s.times.iter().map(|t| t.1).sum()),
-        ));
+        times.push(("codegen forward".into(), t_fwd.saturating_sub(s.times.iter().map(|t| t.1).sum())));
         if has_grads {
             times.push(("codegen gradient".into(), t_grad));
         }
-        let line: Vec<String> = times
-            .iter()
-            .map(|(n, t)| format!("{n} {:.3} ms", t.as_secs_f64() * 1e3))
-            .collect();
+        let line: Vec<String> = times.iter().map(|(n, t)| format!("{n} {:.3} ms", t.as_secs_f64() * 1e3)).collect();
         println!("time: {}", line.join(", "));
     }
     Ok(())
 }
 
 fn scratch(k: &gwml::compiler::codegen::Kernel) -> usize {
-    k.layout
-        .buffers
-        .iter()
-        .filter(|b| b.kind == gwml::compiler::codegen::BufferKind::Scratch)
-        .count()
+    k.layout.buffers.iter().filter(|b| b.kind == gwml::compiler::codegen::BufferKind::Scratch).count()
 }
 
 fn plural(n: usize) -> &'static str {
@@ -140,15 +119,11 @@ fn split_pair<'a>(s: &'a str, flag: &str) -> Result<(&'a str, &'a str), String> 
 /// `gwml run`.
 pub fn run(a: RunArgs) -> Result<(), String> {
     let model = Model::from_file(&a.file).map_err(render)?;
-    let scene = model
-        .scene_with(a.scene.as_deref(), options(a.precision))
-        .map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.precision)).map_err(render)?;
     let mut run = scene.bind();
     for s in &a.set {
         let (name, value) = split_pair(s, "--set")?;
-        let v: f64 = value
-            .parse()
-            .map_err(|_| format!("error: --set {name}: `{value}` is not a number"))?;
+        let v: f64 = value.parse().map_err(|_| format!("error: --set {name}: `{value}` is not a number"))?;
         run.param(name, v).map_err(render)?;
     }
     for s in &a.input {
@@ -161,12 +136,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             run.input_real(name, &re).map_err(render)?;
         }
     }
-    let out = if a.grad {
-        run.value_and_grad()
-    } else {
-        run.forward()
-    }
-    .map_err(render)?;
+    let out = if a.grad { run.value_and_grad() } else { run.forward() }.map_err(render)?;
     let mut written = Vec::new();
     for s in &a.output {
         let (name, path) = split_pair(s, "--output")?;
@@ -182,11 +152,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     }
     let f = scene.ir();
     if a.format == Format::Json {
-        let params: Map<String, serde_json::Value> = out
-            .params
-            .iter()
-            .map(|(n, v)| (n.clone(), json!(v)))
-            .collect();
+        let params: Map<String, serde_json::Value> = out.params.iter().map(|(n, v)| (n.clone(), json!(v))).collect();
         let mut outputs = Map::new();
         for (n, v) in &out.values {
             let file = written.iter().find(|(w, _)| w == n).map(|(_, p)| p.clone());
@@ -205,21 +171,12 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         }
         println!(
             "{}",
-            serde_json::to_string_pretty(
-                &json!({"params": params, "outputs": outputs, "grads": grads})
-            )
-            .expect("JSON of numbers")
+            serde_json::to_string_pretty(&json!({"params": params, "outputs": outputs, "grads": grads})).expect("JSON of numbers")
         );
         return Ok(());
     }
     println!("scene {} (precision {})", f.name, f.precision);
-    let w = out
-        .params
-        .iter()
-        .map(|p| p.0.len())
-        .chain(out.values.iter().map(|v| v.0.len()))
-        .max()
-        .unwrap_or(0);
+    let w = out.params.iter().map(|p| p.0.len()).chain(out.values.iter().map(|v| v.0.len())).max().unwrap_or(0);
     if !out.params.is_empty() {
         println!("params:");
         for ((n, v), p) in out.params.iter().zip(&f.params) {
@@ -228,11 +185,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     }
     println!("outputs:");
     for ((n, v), o) in out.values.iter().zip(&f.outputs) {
-        let file = written
-            .iter()
-            .find(|(w, _)| w == n)
-            .map(|(_, p)| format!(" -> {p}"))
-            .unwrap_or_default();
+        let file = written.iter().find(|(w, _)| w == n).map(|(_, p)| format!(" -> {p}")).unwrap_or_default();
         let text = match v {
             Value::Real(x) => format!("{x}"),
             Value::Complex(z) => format!("{} {:+}i", z.re, z.im),
@@ -243,26 +196,10 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     }
     if !out.grads.is_empty() {
         println!("gradients:");
-        let gw = out
-            .grads
-            .iter()
-            .map(|(o, p, _)| o.len() + p.len() + 8)
-            .max()
-            .unwrap_or(0);
-        for ((o, p, g), pi) in out
-            .grads
-            .iter()
-            .zip(f.grads.iter().map(|g| &f.params[g.param]))
-        {
+        let gw = out.grads.iter().map(|(o, p, _)| o.len() + p.len() + 8).max().unwrap_or(0);
+        for ((o, p, g), pi) in out.grads.iter().zip(f.grads.iter().map(|g| &f.params[g.param])) {
             let label = format!("d{o}/d{p}");
-            println!(
-                "  {label:gw$} = {g} {}",
-                if pi.unit == "1" {
-                    String::new()
-                } else {
-                    format!("per {}", pi.unit)
-                }
-            );
+            println!("  {label:gw$} = {g} {}", if pi.unit == "1" { String::new() } else { format!("per {}", pi.unit) });
         }
     }
     Ok(())
@@ -279,10 +216,6 @@ fn unit(u: &str) -> String {
 fn summary(len: usize, xs: impl Iterator<Item = f64> + Clone, complex: bool) -> String {
     let min = xs.clone().fold(f64::INFINITY, f64::min);
     let max = xs.fold(f64::NEG_INFINITY, f64::max);
-    let what = if complex {
-        "complex array, |z|"
-    } else {
-        "array"
-    };
+    let what = if complex { "complex array, |z|" } else { "array" };
     format!("{what} of {len}: min {min:.6e}, max {max:.6e} (write it with --output NAME=FILE.npy)")
 }

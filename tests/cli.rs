@@ -7,16 +7,8 @@ use common::chirp_reference as reference;
 use std::process::Command;
 
 fn gwml(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_gwml"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("gwml runs");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    let out = Command::new(env!("CARGO_BIN_EXE_gwml")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().expect("gwml runs");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
 fn json(args: &[&str]) -> serde_json::Value {
@@ -33,24 +25,8 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
 fn run_chirp_fit_matches_hand_written_loss_and_gradient() {
     let data = reference::default_data();
     for (mc, tc, phic) in [(28.0, 0.0, 0.0), (30.5, 0.0021, 0.25), (12.0, -0.01, 1.0)] {
-        let (mcs, tcs, phics) = (
-            format!("mc={mc}"),
-            format!("tc={tc}"),
-            format!("phic={phic}"),
-        );
-        let j = json(&[
-            "run",
-            "examples/chirp_fit.gw",
-            "--grad",
-            "--format",
-            "json",
-            "--set",
-            &mcs,
-            "--set",
-            &tcs,
-            "--set",
-            &phics,
-        ]);
+        let (mcs, tcs, phics) = (format!("mc={mc}"), format!("tc={tc}"), format!("phic={phic}"));
+        let j = json(&["run", "examples/chirp_fit.gw", "--grad", "--format", "json", "--set", &mcs, "--set", &tcs, "--set", &phics]);
         let (loss, grad) = reference::loss_and_grad(&data, mc, tc, phic);
         let got = j["outputs"]["loss"].as_f64().unwrap();
         assert!(close(got, loss, 1e-9), "loss {got} vs {loss}");
@@ -96,16 +72,8 @@ fn run_with_npy_input_and_output() {
         "json",
     ]);
     let sum_sq: f64 = xs.iter().map(|x| x * x).sum();
-    assert!(close(
-        j["outputs"]["total"].as_f64().unwrap(),
-        2.0 * sum_sq,
-        1e-14
-    ));
-    assert!(close(
-        j["grads"]["total"]["a"].as_f64().unwrap(),
-        sum_sq,
-        1e-14
-    ));
+    assert!(close(j["outputs"]["total"].as_f64().unwrap(), 2.0 * sum_sq, 1e-14));
+    assert!(close(j["grads"]["total"]["a"].as_f64().unwrap(), sum_sq, 1e-14));
     let y = gwml::npy::read(&outp).unwrap();
     assert_eq!(y.values.len(), 8);
     for (x, yv) in xs.iter().zip(&y.values) {
@@ -117,10 +85,7 @@ fn run_with_npy_input_and_output() {
 fn errors_are_reported_not_panics() {
     let (ok, _, err) = gwml(&["run", "examples/chirp_fit.gw", "--set", "mcc=3"]);
     assert!(!ok);
-    assert!(
-        err.contains("no param `mcc`") && err.contains("did you mean `mc`"),
-        "{err}"
-    );
+    assert!(err.contains("no param `mcc`") && err.contains("did you mean `mc`"), "{err}");
     let (ok, _, err) = gwml(&["run", "examples/chirp_fit.gw", "--set", "mc=500"]);
     assert!(!ok);
     assert!(err.contains("outside its bounds"), "{err}");
@@ -141,10 +106,7 @@ fn compile_emits_every_stage_and_stats() {
     }
     let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--stats"]);
     assert!(ok);
-    assert!(
-        out.contains("ops: checked") && out.contains("fused loop") && out.contains("time:"),
-        "{out}"
-    );
+    assert!(out.contains("ops: checked") && out.contains("fused loop") && out.contains("time:"), "{out}");
     let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--precision", "f32"]);
     assert!(ok && out.contains("precision f32"), "{out}");
 }
@@ -152,18 +114,7 @@ fn compile_emits_every_stage_and_stats() {
 #[test]
 fn f32_run_agrees_with_f64() {
     let a = json(&["run", "examples/chirp_fit.gw", "--grad", "--format", "json"]);
-    let b = json(&[
-        "run",
-        "examples/chirp_fit.gw",
-        "--grad",
-        "--format",
-        "json",
-        "--precision",
-        "f32",
-    ]);
-    let (x, y) = (
-        a["outputs"]["loss"].as_f64().unwrap(),
-        b["outputs"]["loss"].as_f64().unwrap(),
-    );
+    let b = json(&["run", "examples/chirp_fit.gw", "--grad", "--format", "json", "--precision", "f32"]);
+    let (x, y) = (a["outputs"]["loss"].as_f64().unwrap(), b["outputs"]["loss"].as_f64().unwrap());
     assert!(close(y, x, 1e-3), "f32 loss {y} vs f64 {x}");
 }

@@ -43,43 +43,27 @@ impl Builder {
             Op::ConstComplex(..) => Ty::COMPLEX,
             Op::Param(_) => Ty::REAL,
             Op::Input(i) => self.func.inputs[i as usize].ty,
-            Op::GridCoord(g) => Ty {
-                elem: Elem::Real,
-                shape: Shape::Grid(g),
-            },
+            Op::GridCoord(g) => Ty { elem: Elem::Real, shape: Shape::Grid(g) },
             Op::Unary(u, a) => match u {
-                UnOp::Abs | UnOp::Re | UnOp::Im | UnOp::Abs2 | UnOp::Sign => {
-                    t(a).with_elem(Elem::Real)
-                }
+                UnOp::Abs | UnOp::Re | UnOp::Im | UnOp::Abs2 | UnOp::Sign => t(a).with_elem(Elem::Real),
                 UnOp::Cis | UnOp::ToComplex => t(a).with_elem(Elem::Complex),
                 _ => t(a),
             },
             Op::Binary(b, x, _) => match b {
-                BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne => {
-                    t(x).with_elem(Elem::Bool)
-                }
+                BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne => t(x).with_elem(Elem::Bool),
                 BinOp::Complex => t(x).with_elem(Elem::Complex),
                 _ => t(x),
             },
             Op::PowConst(a, _) => t(a),
             Op::Select(_, a, _) => t(a),
-            Op::Broadcast(a, g) => Ty {
-                elem: t(a).elem,
-                shape: Shape::Grid(g),
-            },
-            Op::Reduce(_, a) => Ty {
-                elem: t(a).elem,
-                shape: Shape::Scalar,
-            },
+            Op::Broadcast(a, g) => Ty { elem: t(a).elem, shape: Shape::Grid(g) },
+            Op::Reduce(_, a) => Ty { elem: t(a).elem, shape: Shape::Scalar },
         }
     }
 
     /// Appends `op` as is (CSE only when folding is on).
     pub fn push(&mut self, op: Op) -> Value {
-        let inst = Inst {
-            op,
-            ty: self.infer(&op),
-        };
+        let inst = Inst { op, ty: self.infer(&op) };
         if self.fold {
             if let Some(v) = self.memo.get(&inst) {
                 return *v;
@@ -146,9 +130,7 @@ impl Builder {
                     let r = match op {
                         Op::Unary(u, _) => eval::unary(u, c[0], elem_in),
                         Op::Binary(b, ..) => eval::binary(b, c[0], c[1], elem_in),
-                        Op::PowConst(_, e) => {
-                            C64::new(eval::pow_const(c[0].re, f64::from_bits(e)), 0.0)
-                        }
+                        Op::PowConst(_, e) => C64::new(eval::pow_const(c[0].re, f64::from_bits(e)), 0.0),
                         Op::Select(..) => {
                             if c[0].re != 0.0 {
                                 c[1]
@@ -176,9 +158,7 @@ impl Builder {
             Op::Binary(BinOp::Add, a, b) if zero(self, a) => Some(b),
             Op::Binary(BinOp::Add, a, b) if zero(self, b) => Some(a),
             Op::Binary(BinOp::Sub, a, b) if zero(self, b) => Some(a),
-            Op::Binary(BinOp::Sub, a, b) if zero(self, a) => {
-                Some(self.emit(Op::Unary(UnOp::Neg, b)))
-            }
+            Op::Binary(BinOp::Sub, a, b) if zero(self, a) => Some(self.emit(Op::Unary(UnOp::Neg, b))),
             Op::Binary(BinOp::Mul, a, b) if zero(self, a) || zero(self, b) => Some(self.zero(ty)),
             Op::Binary(BinOp::Mul, a, b) if one(self, a) => Some(b),
             Op::Binary(BinOp::Mul, a, b) if one(self, b) => Some(a),
@@ -202,9 +182,7 @@ impl Builder {
                 _ => None,
             },
             Op::PowConst(a, c) if f64::from_bits(c) == 1.0 => Some(a),
-            Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => {
-                Some(self.constant(C64::new(1.0, 0.0), ty))
-            }
+            Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => Some(self.constant(C64::new(1.0, 0.0), ty)),
             Op::Select(_, a, b) if a == b => Some(a),
             Op::Select(c, a, b) => match self.const_of(c) {
                 Some(k) => Some(if k.re != 0.0 { a } else { b }),

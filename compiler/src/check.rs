@@ -13,10 +13,7 @@ use crate::builder::Builder;
 use crate::diagnostics::{did_you_mean, Diagnostic};
 use crate::ir::{self, BinOp as IrBin, Elem, Op, Precision, Reduce, Shape, Ty, UnOp, Value};
 use crate::source::{Span, Spanned};
-use crate::syntax::ast::{
-    self, BinOp, ElemAnn, Expr, ExprKind, Item, LetDecl, ModuleDef, SceneDef, SceneStmt, TypeAnn,
-    UnitExpr,
-};
+use crate::syntax::ast::{self, BinOp, ElemAnn, Expr, ExprKind, Item, LetDecl, ModuleDef, SceneDef, SceneStmt, TypeAnn, UnitExpr};
 use crate::units::{self, Dim, Ratio};
 use num_complex::Complex64 as C64;
 use std::collections::{HashMap, HashSet};
@@ -39,42 +36,12 @@ const M_PER_S: Dim = Dim([Ratio::int(-1), Ratio::ZERO, Ratio::int(1)]);
 
 /// Named constants (values as in LALConstants.h, LALSuite).
 pub const CONSTANTS: &[Constant] = &[
-    Constant {
-        name: "pi",
-        value: std::f64::consts::PI,
-        dim: Dim::NONE,
-        doc: "π",
-    },
-    Constant {
-        name: "MTSUN",
-        value: 4.925_490_947_641_267e-6,
-        dim: S_PER_MSUN,
-        doc: "solar mass in seconds, G Msun / c^3 (LAL_MTSUN_SI)",
-    },
-    Constant {
-        name: "MRSUN",
-        value: 1.476_625_038_050_124_7e3,
-        dim: M_PER_MSUN,
-        doc: "solar mass in metres, G Msun / c^2 (LAL_MRSUN_SI)",
-    },
-    Constant {
-        name: "C",
-        value: 299_792_458.0,
-        dim: M_PER_S,
-        doc: "speed of light in m/s (LAL_C_SI)",
-    },
-    Constant {
-        name: "MPC_M",
-        value: units::MPC_IN_M,
-        dim: Dim::LENGTH,
-        doc: "one megaparsec in metres (LAL_PC_SI × 1e6)",
-    },
-    Constant {
-        name: "MPC_S",
-        value: units::MPC_IN_M / 299_792_458.0,
-        dim: Dim::TIME,
-        doc: "one megaparsec in light-seconds (Mpc / c)",
-    },
+    Constant { name: "pi", value: std::f64::consts::PI, dim: Dim::NONE, doc: "π" },
+    Constant { name: "MTSUN", value: 4.925_490_947_641_267e-6, dim: S_PER_MSUN, doc: "solar mass in seconds, G Msun / c^3 (LAL_MTSUN_SI)" },
+    Constant { name: "MRSUN", value: 1.476_625_038_050_124_7e3, dim: M_PER_MSUN, doc: "solar mass in metres, G Msun / c^2 (LAL_MRSUN_SI)" },
+    Constant { name: "C", value: 299_792_458.0, dim: M_PER_S, doc: "speed of light in m/s (LAL_C_SI)" },
+    Constant { name: "MPC_M", value: units::MPC_IN_M, dim: Dim::LENGTH, doc: "one megaparsec in metres (LAL_PC_SI × 1e6)" },
+    Constant { name: "MPC_S", value: units::MPC_IN_M / 299_792_458.0, dim: Dim::TIME, doc: "one megaparsec in light-seconds (Mpc / c)" },
 ];
 
 /// Names callable as builtins, with a one-line description (used by
@@ -135,12 +102,7 @@ struct Scope<'a> {
 
 impl<'a> Scope<'a> {
     fn new(kind: ScopeKind) -> Self {
-        Scope {
-            kind,
-            values: HashMap::new(),
-            grids: HashMap::new(),
-            lets: HashMap::new(),
-        }
+        Scope { kind, values: HashMap::new(), grids: HashMap::new(), lets: HashMap::new() }
     }
 }
 
@@ -158,12 +120,7 @@ pub type SceneResult = Result<ir::Function, Vec<Diagnostic>>;
 impl<'a> Checker<'a> {
     /// A checker that sees `modules` (user modules and imported stdlib modules).
     pub fn new(modules: HashMap<String, &'a ModuleDef>) -> Self {
-        Checker {
-            modules,
-            diags: Vec::new(),
-            seen: HashSet::new(),
-            call_stack: Vec::new(),
-        }
+        Checker { modules, diags: Vec::new(), seen: HashSet::new(), call_stack: Vec::new() }
     }
 
     fn error(&mut self, d: Diagnostic) {
@@ -184,14 +141,8 @@ impl<'a> Checker<'a> {
         for l in &m.lets {
             if !names.insert(l.name.node.clone()) {
                 self.error(
-                    Diagnostic::error(
-                        l.name.span,
-                        format!(
-                            "`{}` is defined twice in module `{}`",
-                            l.name.node, m.name.node
-                        ),
-                    )
-                    .with_help("rename one of the definitions"),
+                    Diagnostic::error(l.name.span, format!("`{}` is defined twice in module `{}`", l.name.node, m.name.node))
+                        .with_help("rename one of the definitions"),
                 );
             }
         }
@@ -207,11 +158,7 @@ impl<'a> Checker<'a> {
         match &e.node {
             ExprKind::Name(n) => {
                 if !names.contains(n) && !CONSTANTS.iter().any(|c| c.name == n) {
-                    let cands: Vec<&str> = names
-                        .iter()
-                        .map(|s| s.as_str())
-                        .chain(CONSTANTS.iter().map(|c| c.name))
-                        .collect();
+                    let cands: Vec<&str> = names.iter().map(|s| s.as_str()).chain(CONSTANTS.iter().map(|c| c.name)).collect();
                     self.error(unknown_name(e.span, n, &cands));
                 }
             }
@@ -226,9 +173,7 @@ impl<'a> Checker<'a> {
                 }
             }
             ExprKind::Call { callee, args } => {
-                if !self.modules.contains_key(&callee.node)
-                    && !BUILTINS.iter().any(|b| b.0 == callee.node)
-                {
+                if !self.modules.contains_key(&callee.node) && !BUILTINS.iter().any(|b| b.0 == callee.node) {
                     self.error(self.unknown_function(callee));
                 }
                 for a in args {
@@ -240,29 +185,19 @@ impl<'a> Checker<'a> {
     }
 
     fn unknown_function(&self, callee: &Spanned<String>) -> Diagnostic {
-        let cands: Vec<&str> = self
-            .modules
-            .keys()
-            .map(|s| s.as_str())
-            .chain(BUILTINS.iter().map(|b| b.0))
-            .collect();
-        let mut d = Diagnostic::error(callee.span, format!("unknown function `{}`", callee.node))
-            .with_label("not a builtin or a module in scope");
+        let cands: Vec<&str> = self.modules.keys().map(|s| s.as_str()).chain(BUILTINS.iter().map(|b| b.0)).collect();
+        let mut d =
+            Diagnostic::error(callee.span, format!("unknown function `{}`", callee.node)).with_label("not a builtin or a module in scope");
         d = match did_you_mean(&callee.node, cands) {
             Some(s) => d.with_help(format!("did you mean `{s}`?")),
-            None => {
-                d.with_help("define it with `module`, or import it with `use std::FILE::{NAME}`")
-            }
+            None => d.with_help("define it with `module`, or import it with `use std::FILE::{NAME}`"),
         };
         d
     }
 
     /// Checks `scene` and lowers it to IR.
     pub fn lower_scene(mut self, scene: &'a SceneDef) -> SceneResult {
-        let mut func = ir::Function {
-            name: scene.name.node.clone(),
-            ..Default::default()
-        };
+        let mut func = ir::Function { name: scene.name.node.clone(), ..Default::default() };
         let mut scope = Scope::new(ScopeKind::Scene);
         let mut declared: HashMap<String, Span> = HashMap::new();
         let mut knobs: HashMap<String, Span> = HashMap::new();
@@ -276,15 +211,9 @@ impl<'a> Checker<'a> {
             if let Some(n) = name {
                 if let Some(prev) = declared.insert(n.node.clone(), n.span) {
                     self.error(
-                        Diagnostic::error(
-                            n.span,
-                            format!(
-                                "`{}` is declared twice in scene `{}`",
-                                n.node, scene.name.node
-                            ),
-                        )
-                        .with_secondary(prev, "first declared here")
-                        .with_help("rename one of them"),
+                        Diagnostic::error(n.span, format!("`{}` is declared twice in scene `{}`", n.node, scene.name.node))
+                            .with_secondary(prev, "first declared here")
+                            .with_help("rename one of them"),
                     );
                 }
             }
@@ -304,11 +233,7 @@ impl<'a> Checker<'a> {
                             .with_help("use `precision: f64` or `precision: f32`"),
                     ),
                     (other, _) => {
-                        let mut d = Diagnostic::error(
-                            name.span,
-                            format!("unknown scene setting `{other}`"),
-                        )
-                        .with_label("not a knob");
+                        let mut d = Diagnostic::error(name.span, format!("unknown scene setting `{other}`")).with_label("not a knob");
                         d = match did_you_mean(other, ["precision"]) {
                             Some(s) => d.with_help(format!("did you mean `{s}`?")),
                             None => d.with_help("the only knob is `precision: f64 | f32`"),
@@ -327,11 +252,7 @@ impl<'a> Checker<'a> {
                     b.func.grids.push(grid);
                     scope.grids.insert(name.node.clone(), id);
                     let coord = b.push(Op::GridCoord(id));
-                    let dim = if b.func.grids[id.0 as usize].unit == "Hz" {
-                        Dim::FREQ
-                    } else {
-                        Dim::TIME
-                    };
+                    let dim = if b.func.grids[id.0 as usize].unit == "Hz" { Dim::FREQ } else { Dim::TIME };
                     scope.values.insert(name.node.clone(), Tv { v: coord, dim });
                 }
             }
@@ -348,17 +269,9 @@ impl<'a> Checker<'a> {
                 }
                 SceneStmt::Input { name, ty, default } => {
                     if let Some((ity, dim, scale, unit)) = self.type_ann(ty, &scope) {
-                        let default = default
-                            .as_ref()
-                            .and_then(|e| self.input_default(&b.func, &scope, e, name, ity, dim));
+                        let default = default.as_ref().and_then(|e| self.input_default(&b.func, &scope, e, name, ity, dim));
                         let idx = b.func.inputs.len() as u32;
-                        b.func.inputs.push(ir::InputInfo {
-                            name: name.node.clone(),
-                            ty: ity,
-                            scale,
-                            unit,
-                            default,
-                        });
+                        b.func.inputs.push(ir::InputInfo { name: name.node.clone(), ty: ity, scale, unit, default });
                         let v = b.push(Op::Input(idx));
                         scope.values.insert(name.node.clone(), Tv { v, dim });
                     }
@@ -378,13 +291,8 @@ impl<'a> Checker<'a> {
                     self.lookup_let(&mut b, &mut scope, &l.name.node, l.name.span);
                 }
                 SceneStmt::Output(l) => {
-                    if let Some(tv) = self.lookup_let(&mut b, &mut scope, &l.name.node, l.name.span)
-                    {
-                        outputs.push(ir::Output {
-                            name: l.name.node.clone(),
-                            value: tv.v,
-                            unit: tv.dim.to_string(),
-                        });
+                    if let Some(tv) = self.lookup_let(&mut b, &mut scope, &l.name.node, l.name.span) {
+                        outputs.push(ir::Output { name: l.name.node.clone(), value: tv.v, unit: tv.dim.to_string() });
                     }
                 }
                 _ => {}
@@ -403,23 +311,16 @@ impl<'a> Checker<'a> {
         }
     }
 
-    fn grad_request(
-        &mut self,
-        b: &mut Builder,
-        scene: &SceneDef,
-        output: &Spanned<String>,
-        wrt: &[Spanned<String>],
-    ) {
+    fn grad_request(&mut self, b: &mut Builder, scene: &SceneDef, output: &Spanned<String>, wrt: &[Spanned<String>]) {
+        let declared = scene.stmts.iter().any(|s| matches!(s, SceneStmt::Output(l) if l.name.node == output.node));
         let Some(oi) = b.func.outputs.iter().position(|o| o.name == output.node) else {
+            if declared {
+                // The output itself failed to check; that error was reported.
+                return;
+            }
             let outs: Vec<String> = b.func.outputs.iter().map(|o| o.name.clone()).collect();
-            let mut d = Diagnostic::error(
-                output.span,
-                format!(
-                    "`{}` is not an output of scene `{}`",
-                    output.node, scene.name.node
-                ),
-            )
-            .with_label("gradients are taken of outputs");
+            let mut d = Diagnostic::error(output.span, format!("`{}` is not an output of scene `{}`", output.node, scene.name.node))
+                .with_label("gradients are taken of outputs");
             d = match did_you_mean(&output.node, outs.iter().map(|s| s.as_str())) {
                 Some(s) => d.with_help(format!("did you mean `{s}`?")),
                 None => d.with_help(format!("declare it with `output {} = ...`", output.node)),
@@ -432,11 +333,7 @@ impl<'a> Checker<'a> {
             self.error(
                 Diagnostic::error(
                     output.span,
-                    format!(
-                        "cannot differentiate `{}`: it is {}, not a real scalar",
-                        output.node,
-                        b.func.fmt_ty(ty)
-                    ),
+                    format!("cannot differentiate `{}`: it is {}, not a real scalar", output.node, b.func.fmt_ty(ty)),
                 )
                 .with_help("reduce it to a real scalar first, e.g. `sum(abs2(x))`"),
             );
@@ -446,11 +343,7 @@ impl<'a> Checker<'a> {
             match b.func.params.iter().position(|p| p.name == w.node) {
                 Some(pi) => {
                     if !b.func.grads.iter().any(|g| g.output == oi && g.param == pi) {
-                        b.func.grads.push(ir::GradOutput {
-                            output: oi,
-                            param: pi,
-                            value: None,
-                        });
+                        b.func.grads.push(ir::GradOutput { output: oi, param: pi, value: None });
                     }
                 }
                 None => {
@@ -462,17 +355,11 @@ impl<'a> Checker<'a> {
                         _ => None,
                     });
                     let params: Vec<&str> = b.func.params.iter().map(|p| p.name.as_str()).collect();
-                    let mut d = Diagnostic::error(
-                        w.span,
-                        format!("cannot take a gradient with respect to `{}`", w.node),
-                    );
+                    let mut d = Diagnostic::error(w.span, format!("cannot take a gradient with respect to `{}`", w.node));
                     d = match is_other {
                         Some(kind) => d
                             .with_label(format!("`{}` is {kind}, not a param", w.node))
-                            .with_help(format!(
-                                "declare it as `param {}` to differentiate with respect to it",
-                                w.node
-                            )),
+                            .with_help(format!("declare it as `param {}` to differentiate with respect to it", w.node)),
                         None => {
                             let d = d.with_label("not a param of this scene");
                             match did_you_mean(&w.node, params) {
@@ -490,11 +377,8 @@ impl<'a> Checker<'a> {
     fn grid_def(&mut self, name: &Spanned<String>, def: &'a Expr) -> Option<ir::Grid> {
         let ExprKind::Call { callee, args } = &def.node else {
             self.error(
-                Diagnostic::error(
-                    def.span,
-                    "a grid is defined by `frequencies(...)` or `times(...)`",
-                )
-                .with_help("e.g. `grid f = frequencies(from: 20 Hz, to: 1024 Hz, step: 0.125 Hz)`"),
+                Diagnostic::error(def.span, "a grid is defined by `frequencies(...)` or `times(...)`")
+                    .with_help("e.g. `grid f = frequencies(from: 20 Hz, to: 1024 Hz, step: 0.125 Hz)`"),
             );
             return None;
         };
@@ -503,11 +387,8 @@ impl<'a> Checker<'a> {
             "times" => (&["rate", "duration"], &[Dim::FREQ, Dim::TIME]),
             _ => {
                 self.error(
-                    Diagnostic::error(
-                        callee.span,
-                        format!("`{}` does not define a grid", callee.node),
-                    )
-                    .with_help("use `frequencies(from:, to:, step:)` or `times(rate:, duration:)`"),
+                    Diagnostic::error(callee.span, format!("`{}` does not define a grid", callee.node))
+                        .with_help("use `frequencies(from:, to:, step:)` or `times(rate:, duration:)`"),
                 );
                 return None;
             }
@@ -515,26 +396,15 @@ impl<'a> Checker<'a> {
         let mut vals = vec![None; wanted.len()];
         for a in args {
             let Some(n) = &a.name else {
-                self.error(
-                    Diagnostic::error(a.value.span, "grid arguments must be named").with_help(
-                        format!(
-                            "write `{}(` {} `)`",
-                            callee.node,
-                            wanted
-                                .iter()
-                                .map(|w| format!("{w}: ..."))
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        ),
-                    ),
-                );
+                self.error(Diagnostic::error(a.value.span, "grid arguments must be named").with_help(format!(
+                    "write `{}(` {} `)`",
+                    callee.node,
+                    wanted.iter().map(|w| format!("{w}: ...")).collect::<Vec<_>>().join(", ")
+                )));
                 continue;
             };
             let Some(i) = wanted.iter().position(|w| *w == n.node) else {
-                let mut d = Diagnostic::error(
-                    n.span,
-                    format!("`{}` has no argument `{}`", callee.node, n.node),
-                );
+                let mut d = Diagnostic::error(n.span, format!("`{}` has no argument `{}`", callee.node, n.node));
                 if let Some(s) = did_you_mean(&n.node, wanted.iter().copied()) {
                     d = d.with_help(format!("did you mean `{s}`?"));
                 } else {
@@ -545,22 +415,14 @@ impl<'a> Checker<'a> {
             };
             if let Some((x, dim)) = self.const_eval(&a.value) {
                 if dim != dims[i] {
-                    self.error(unit_mismatch(
-                        a.value.span,
-                        dims[i],
-                        dim,
-                        &format!("`{}` of `{}`", n.node, callee.node),
-                    ));
+                    self.error(unit_mismatch(a.value.span, dims[i], dim, &format!("`{}` of `{}`", n.node, callee.node)));
                 } else {
                     vals[i] = Some(x);
                 }
             }
         }
         if let Some(i) = vals.iter().position(|v| v.is_none()) {
-            if !args
-                .iter()
-                .any(|a| a.name.as_ref().is_some_and(|n| n.node == wanted[i]))
-            {
+            if !args.iter().any(|a| a.name.as_ref().is_some_and(|n| n.node == wanted[i])) {
                 self.error(
                     Diagnostic::error(def.span, format!("`{}` needs `{}`", callee.node, wanted[i]))
                         .with_help(format!("add `{}: ...`", wanted[i])),
@@ -574,14 +436,8 @@ impl<'a> Checker<'a> {
             let (from, to, step) = (v[0], v[1], v[2]);
             if !(step > 0.0) || !(to >= from) || !from.is_finite() || !to.is_finite() {
                 self.error(
-                    Diagnostic::error(
-                        def.span,
-                        format!(
-                            "empty or invalid grid `{}`: need from <= to and step > 0",
-                            name.node
-                        ),
-                    )
-                    .with_help("check the bounds and the step"),
+                    Diagnostic::error(def.span, format!("empty or invalid grid `{}`: need from <= to and step > 0", name.node))
+                        .with_help("check the bounds and the step"),
                 );
                 return None;
             }
@@ -591,14 +447,8 @@ impl<'a> Checker<'a> {
             let (rate, duration) = (v[0], v[1]);
             if !(rate > 0.0) || !(duration > 0.0) {
                 self.error(
-                    Diagnostic::error(
-                        def.span,
-                        format!(
-                            "invalid grid `{}`: rate and duration must be positive",
-                            name.node
-                        ),
-                    )
-                    .with_help("check the rate and the duration"),
+                    Diagnostic::error(def.span, format!("invalid grid `{}`: rate and duration must be positive", name.node))
+                        .with_help("check the rate and the duration"),
                 );
                 return None;
             }
@@ -606,21 +456,12 @@ impl<'a> Checker<'a> {
         };
         if !(len <= MAX_POINTS) {
             self.error(
-                Diagnostic::error(
-                    def.span,
-                    format!("grid `{}` would have {len:e} points", name.node),
-                )
-                .with_help("grids are limited to 1e9 points; use a coarser step"),
+                Diagnostic::error(def.span, format!("grid `{}` would have {len:e} points", name.node))
+                    .with_help("grids are limited to 1e9 points; use a coarser step"),
             );
             return None;
         }
-        Some(ir::Grid {
-            name: name.node.clone(),
-            start,
-            step,
-            len: len as usize,
-            unit: unit.into(),
-        })
+        Some(ir::Grid { name: name.node.clone(), start, step, len: len as usize, unit: unit.into() })
     }
 
     fn param_decl(&mut self, p: &'a ast::ParamDecl) -> Option<(ir::ParamInfo, Dim)> {
@@ -629,8 +470,7 @@ impl<'a> Checker<'a> {
                 if let Some(e) = &t.elem {
                     if e.node == ElemAnn::Complex {
                         self.error(
-                            Diagnostic::error(e.span, "params are real scalars")
-                                .with_help("use two real params and `complex(re, im)`"),
+                            Diagnostic::error(e.span, "params are real scalars").with_help("use two real params and `complex(re, im)`"),
                         );
                     }
                 }
@@ -654,12 +494,7 @@ impl<'a> Checker<'a> {
             } else if d.is_none() {
                 Some(x)
             } else {
-                this.error(unit_mismatch(
-                    e.span,
-                    dim,
-                    d,
-                    &format!("param `{}`", p.name.node),
-                ));
+                this.error(unit_mismatch(e.span, dim, d, &format!("param `{}`", p.name.node)));
                 None
             }
         };
@@ -672,11 +507,8 @@ impl<'a> Checker<'a> {
                 let (l, h) = (in_unit(self, lo)?, in_unit(self, hi)?);
                 if !(l < h) {
                     self.error(
-                        Diagnostic::error(
-                            lo.span.to(hi.span),
-                            format!("empty bounds {l}..{h} for param `{}`", p.name.node),
-                        )
-                        .with_help("the lower bound must be below the upper bound"),
+                        Diagnostic::error(lo.span.to(hi.span), format!("empty bounds {l}..{h} for param `{}`", p.name.node))
+                            .with_help("the lower bound must be below the upper bound"),
                     );
                     return None;
                 }
@@ -685,10 +517,7 @@ impl<'a> Checker<'a> {
                         self.error(
                             Diagnostic::error(
                                 p.default.as_ref().map(|e| e.span).unwrap_or(p.span),
-                                format!(
-                                    "default {d} of `{}` is outside its bounds {l}..{h}",
-                                    p.name.node
-                                ),
+                                format!("default {d} of `{}` is outside its bounds {l}..{h}", p.name.node),
                             )
                             .with_help("move the default inside the bounds"),
                         );
@@ -698,16 +527,7 @@ impl<'a> Checker<'a> {
             }
             None => None,
         };
-        Some((
-            ir::ParamInfo {
-                name: p.name.node.clone(),
-                default,
-                bounds,
-                scale,
-                unit,
-            },
-            dim,
-        ))
+        Some((ir::ParamInfo { name: p.name.node.clone(), default, bounds, scale, unit }, dim))
     }
 
     /// Evaluates an input's default data at compile time (grids and constants only).
@@ -720,34 +540,19 @@ impl<'a> Checker<'a> {
         ty: Ty,
         dim: Dim,
     ) -> Option<Vec<C64>> {
-        let mut header = ir::Function {
-            grids: func.grids.clone(),
-            ..Default::default()
-        };
+        let mut header = ir::Function { grids: func.grids.clone(), ..Default::default() };
         header.name = format!("default of {}", name.node);
         let mut b = Builder::new(header, true);
         let mut scope = Scope::new(ScopeKind::Scene);
         for (g, id) in &scene.grids {
             let v = b.push(Op::GridCoord(*id));
-            scope.values.insert(
-                g.clone(),
-                scene
-                    .values
-                    .get(g)
-                    .map(|tv| Tv { v, dim: tv.dim })
-                    .unwrap_or(Tv { v, dim: Dim::NONE }),
-            );
+            scope.values.insert(g.clone(), scene.values.get(g).map(|tv| Tv { v, dim: tv.dim }).unwrap_or(Tv { v, dim: Dim::NONE }));
             scope.grids.insert(g.clone(), *id);
         }
         let tv = self.expr(&mut b, &mut scope, e)?;
         let vty = b.ty(tv.v);
         if tv.dim != dim {
-            self.error(unit_mismatch(
-                e.span,
-                dim,
-                tv.dim,
-                &format!("input `{}`", name.node),
-            ));
+            self.error(unit_mismatch(e.span, dim, tv.dim, &format!("input `{}`", name.node)));
             return None;
         }
         let shape_ok = vty.shape == ty.shape || vty.shape == Shape::Scalar;
@@ -756,37 +561,20 @@ impl<'a> Checker<'a> {
             self.error(
                 Diagnostic::error(
                     e.span,
-                    format!(
-                        "default of `{}` is {}, but the input is {}",
-                        name.node,
-                        b.func.fmt_ty(vty),
-                        b.func.fmt_ty(ty)
-                    ),
+                    format!("default of `{}` is {}, but the input is {}", name.node, b.func.fmt_ty(vty), b.func.fmt_ty(ty)),
                 )
                 .with_help("make the default match the declared type"),
             );
             return None;
         }
         let v = b.coerce(tv.v, ty);
-        b.func.outputs.push(ir::Output {
-            name: "default".into(),
-            value: v,
-            unit: dim.to_string(),
-        });
+        b.func.outputs.push(ir::Output { name: "default".into(), value: v, unit: dim.to_string() });
         let r = crate::interp::interpret(&b.func, &[], &[]);
         let data = r.values[v.index()].clone();
-        if let Some(i) = data
-            .iter()
-            .position(|x| !x.re.is_finite() || !x.im.is_finite())
-        {
+        if let Some(i) = data.iter().position(|x| !x.re.is_finite() || !x.im.is_finite()) {
             self.error(
-                Diagnostic::error(
-                    e.span,
-                    format!("default of `{}` is not finite at index {i}", name.node),
-                )
-                .with_help(
-                    "check the expression for divisions by zero or logs of non-positive values",
-                ),
+                Diagnostic::error(e.span, format!("default of `{}` is not finite at index {i}", name.node))
+                    .with_help("check the expression for divisions by zero or logs of non-positive values"),
             );
             return None;
         }
@@ -807,10 +595,7 @@ impl<'a> Checker<'a> {
                     let mut d = Diagnostic::error(g.span, format!("unknown grid `{}`", g.node));
                     d = match did_you_mean(&g.node, cands) {
                         Some(s) => d.with_help(format!("did you mean `{s}`?")),
-                        None => d.with_help(format!(
-                            "declare it with `grid {} = frequencies(...)`",
-                            g.node
-                        )),
+                        None => d.with_help(format!("declare it with `grid {} = frequencies(...)`", g.node)),
                     };
                     self.error(d);
                     return None;
@@ -835,14 +620,9 @@ impl<'a> Checker<'a> {
                         let mut d = Diagnostic::error(n.span, format!("unknown unit `{}`", n.node));
                         d = match did_you_mean(&n.node, units::UNITS.iter().map(|u| u.name)) {
                             Some(s) => d.with_help(format!("did you mean `{s}`?")),
-                            None => d.with_help(format!(
-                                "known units: {}",
-                                units::UNITS
-                                    .iter()
-                                    .map(|u| u.name)
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            )),
+                            None => {
+                                d.with_help(format!("known units: {}", units::UNITS.iter().map(|u| u.name).collect::<Vec<_>>().join(", ")))
+                            }
                         };
                         c.error(d);
                         None
@@ -886,13 +666,7 @@ impl<'a> Checker<'a> {
         }
     }
 
-    fn lookup_let(
-        &mut self,
-        b: &mut Builder,
-        scope: &mut Scope<'a>,
-        name: &str,
-        at: Span,
-    ) -> Option<Tv> {
+    fn lookup_let(&mut self, b: &mut Builder, scope: &mut Scope<'a>, name: &str, at: Span) -> Option<Tv> {
         match scope.lets.get(name) {
             Some(LetSlot::Done(tv)) => *tv,
             Some(LetSlot::Busy(def)) => {
@@ -907,12 +681,8 @@ impl<'a> Checker<'a> {
             }
             Some(LetSlot::Pending(decl)) => {
                 let decl: &'a LetDecl = decl;
-                scope
-                    .lets
-                    .insert(name.to_string(), LetSlot::Busy(decl.name.span));
-                let tv = self
-                    .expr(b, scope, &decl.value)
-                    .and_then(|tv| self.check_ann(b, scope, decl.ty.as_ref(), tv, &decl.name));
+                scope.lets.insert(name.to_string(), LetSlot::Busy(decl.name.span));
+                let tv = self.expr(b, scope, &decl.value).and_then(|tv| self.check_ann(b, scope, decl.ty.as_ref(), tv, &decl.name));
                 scope.lets.insert(name.to_string(), LetSlot::Done(tv));
                 tv
             }
@@ -921,14 +691,7 @@ impl<'a> Checker<'a> {
     }
 
     /// Checks a value against an optional annotation (in a let or module arg).
-    fn check_ann(
-        &mut self,
-        b: &mut Builder,
-        scope: &Scope,
-        ann: Option<&TypeAnn>,
-        tv: Tv,
-        name: &Spanned<String>,
-    ) -> Option<Tv> {
+    fn check_ann(&mut self, b: &mut Builder, scope: &Scope, ann: Option<&TypeAnn>, tv: Tv, name: &Spanned<String>) -> Option<Tv> {
         let Some(t) = ann else { return Some(tv) };
         let ty = b.ty(tv.v);
         let mut tv = tv;
@@ -936,18 +699,13 @@ impl<'a> Checker<'a> {
             match (e.node, ty.elem) {
                 (ElemAnn::Real, Elem::Complex) => {
                     self.error(
-                        Diagnostic::error(
-                            name.span,
-                            format!("`{}` is declared real but its value is complex", name.node),
-                        )
-                        .with_secondary(e.span, "declared here")
-                        .with_help("take `re(...)`, `abs(...)` or declare it `complex`"),
+                        Diagnostic::error(name.span, format!("`{}` is declared real but its value is complex", name.node))
+                            .with_secondary(e.span, "declared here")
+                            .with_help("take `re(...)`, `abs(...)` or declare it `complex`"),
                     );
                     return None;
                 }
-                (ElemAnn::Complex, Elem::Real) => {
-                    tv.v = b.coerce(tv.v, ty.with_elem(Elem::Complex))
-                }
+                (ElemAnn::Complex, Elem::Real) => tv.v = b.coerce(tv.v, ty.with_elem(Elem::Complex)),
                 _ => {}
             }
         }
@@ -958,12 +716,7 @@ impl<'a> Checker<'a> {
                     self.error(
                         Diagnostic::error(
                             name.span,
-                            format!(
-                                "`{}` is declared over grid `{}` but its value is {}",
-                                name.node,
-                                g.node,
-                                b.func.fmt_ty(ty)
-                            ),
+                            format!("`{}` is declared over grid `{}` but its value is {}", name.node, g.node, b.func.fmt_ty(ty)),
                         )
                         .with_secondary(g.span, "declared here")
                         .with_help("make the value an array over that grid"),
@@ -975,10 +728,7 @@ impl<'a> Checker<'a> {
         if let Some(u) = &t.unit {
             let (dim, _, _) = self.unit_expr(u)?;
             if dim != tv.dim {
-                self.error(
-                    unit_mismatch(name.span, dim, tv.dim, &format!("`{}`", name.node))
-                        .with_secondary(u.span, "unit declared here"),
-                );
+                self.error(unit_mismatch(name.span, dim, tv.dim, &format!("`{}`", name.node)).with_secondary(u.span, "unit declared here"));
                 return None;
             }
         }
@@ -996,15 +746,9 @@ impl<'a> Checker<'a> {
                     }
                     None => (Dim::NONE, 1.0),
                 };
-                Some(Tv {
-                    v: b.real(x * scale),
-                    dim,
-                })
+                Some(Tv { v: b.real(x * scale), dim })
             }
-            ExprKind::Imaginary(x) => Some(Tv {
-                v: b.push(Op::ConstComplex(0f64.to_bits(), x.to_bits())),
-                dim: Dim::NONE,
-            }),
+            ExprKind::Imaginary(x) => Some(Tv { v: b.push(Op::ConstComplex(0f64.to_bits(), x.to_bits())), dim: Dim::NONE }),
             ExprKind::Name(n) => self.name(b, scope, n, e.span),
             ExprKind::Neg(a) => {
                 let a = self.expr(b, scope, a)?;
@@ -1015,21 +759,14 @@ impl<'a> Checker<'a> {
                     );
                     return None;
                 }
-                Some(Tv {
-                    v: b.neg(a.v),
-                    dim: a.dim,
-                })
+                Some(Tv { v: b.neg(a.v), dim: a.dim })
             }
             ExprKind::Binary(op, l, r) => {
                 let (lt, rt) = (self.expr(b, scope, l), self.expr(b, scope, r));
                 self.binary(b, *op, (lt?, l.span), (rt?, r.span), e.span)
             }
             ExprKind::If(c, x, y) => {
-                let (c_tv, x_tv, y_tv) = (
-                    self.expr(b, scope, c),
-                    self.expr(b, scope, x),
-                    self.expr(b, scope, y),
-                );
+                let (c_tv, x_tv, y_tv) = (self.expr(b, scope, c), self.expr(b, scope, x), self.expr(b, scope, y));
                 self.select(b, (c_tv?, c.span), (x_tv?, x.span), (y_tv?, y.span), e.span)
             }
             ExprKind::Call { callee, args } => self.call(b, scope, callee, args, e.span),
@@ -1044,10 +781,7 @@ impl<'a> Checker<'a> {
             return self.lookup_let(b, scope, n, span);
         }
         if let Some(c) = CONSTANTS.iter().find(|c| c.name == n) {
-            return Some(Tv {
-                v: b.real(c.value),
-                dim: c.dim,
-            });
+            return Some(Tv { v: b.real(c.value), dim: c.dim });
         }
         if scope.kind == ScopeKind::Const {
             self.error(
@@ -1057,25 +791,14 @@ impl<'a> Checker<'a> {
             );
             return None;
         }
-        let cands: Vec<&str> = scope
-            .values
-            .keys()
-            .chain(scope.lets.keys())
-            .map(|s| s.as_str())
-            .chain(CONSTANTS.iter().map(|c| c.name))
-            .collect();
+        let cands: Vec<&str> =
+            scope.values.keys().chain(scope.lets.keys()).map(|s| s.as_str()).chain(CONSTANTS.iter().map(|c| c.name)).collect();
         self.error(unknown_name(span, n, &cands));
         None
     }
 
     /// Unifies element kind and shape of two operands.
-    fn unify(
-        &mut self,
-        b: &mut Builder,
-        (x, xs): (Value, Span),
-        (y, ys): (Value, Span),
-        at: Span,
-    ) -> Option<(Value, Value)> {
+    fn unify(&mut self, b: &mut Builder, (x, xs): (Value, Span), (y, ys): (Value, Span), at: Span) -> Option<(Value, Value)> {
         let (tx, ty) = (b.ty(x), b.ty(y));
         let shape = match (tx.shape, ty.shape) {
             (Shape::Scalar, s) | (s, Shape::Scalar) => s,
@@ -1091,31 +814,23 @@ impl<'a> Checker<'a> {
                 return None;
             }
         };
-        let elem = if tx.elem == Elem::Complex || ty.elem == Elem::Complex {
-            Elem::Complex
-        } else {
-            tx.elem
-        };
+        let elem = if tx.elem == Elem::Complex || ty.elem == Elem::Complex { Elem::Complex } else { tx.elem };
         let target = Ty { elem, shape };
         Some((b.coerce(x, target), b.coerce(y, target)))
     }
 
     fn no_bool(&mut self, b: &Builder, v: (Tv, Span), what: &str) -> Option<()> {
         if b.ty(v.0.v).elem == Elem::Bool {
-            self.error(Diagnostic::error(v.1, format!("{what} needs a number, found a comparison")).with_help("use `select(cond, a, b)` or `if cond { a } else { b }` to turn a comparison into a value"));
+            self.error(
+                Diagnostic::error(v.1, format!("{what} needs a number, found a comparison"))
+                    .with_help("use `select(cond, a, b)` or `if cond { a } else { b }` to turn a comparison into a value"),
+            );
             return None;
         }
         Some(())
     }
 
-    fn binary(
-        &mut self,
-        b: &mut Builder,
-        op: BinOp,
-        l: (Tv, Span),
-        r: (Tv, Span),
-        at: Span,
-    ) -> Option<Tv> {
+    fn binary(&mut self, b: &mut Builder, op: BinOp, l: (Tv, Span), r: (Tv, Span), at: Span) -> Option<Tv> {
         self.no_bool(b, l, &format!("`{}`", op.symbol()))?;
         self.no_bool(b, r, &format!("`{}`", op.symbol()))?;
         let (lt, rt) = (l.0, r.0);
@@ -1123,61 +838,43 @@ impl<'a> Checker<'a> {
             BinOp::Add | BinOp::Sub => {
                 if lt.dim != rt.dim {
                     self.error(
-                        Diagnostic::error(at, format!("unit mismatch: cannot {} {} and {}", if op == BinOp::Add { "add" } else { "subtract" }, lt.dim, rt.dim))
-                            .with_secondary(l.1, format!("this has unit {}", lt.dim))
-                            .with_secondary(r.1, format!("this has unit {}", rt.dim))
-                            .with_help("both sides of `+` and `-` must have the same unit; multiply by a constant to convert"),
+                        Diagnostic::error(
+                            at,
+                            format!(
+                                "unit mismatch: cannot {} {} and {}",
+                                if op == BinOp::Add { "add" } else { "subtract" },
+                                lt.dim,
+                                rt.dim
+                            ),
+                        )
+                        .with_secondary(l.1, format!("this has unit {}", lt.dim))
+                        .with_secondary(r.1, format!("this has unit {}", rt.dim))
+                        .with_help("both sides of `+` and `-` must have the same unit; multiply by a constant to convert"),
                     );
                     return None;
                 }
                 let (x, y) = self.unify(b, (lt.v, l.1), (rt.v, r.1), at)?;
-                let v = b.binary(
-                    if op == BinOp::Add {
-                        IrBin::Add
-                    } else {
-                        IrBin::Sub
-                    },
-                    x,
-                    y,
-                );
+                let v = b.binary(if op == BinOp::Add { IrBin::Add } else { IrBin::Sub }, x, y);
                 Some(Tv { v, dim: lt.dim })
             }
             BinOp::Mul | BinOp::Div => {
-                let dim = if op == BinOp::Mul {
-                    lt.dim.mul(rt.dim)
-                } else {
-                    lt.dim.mul(rt.dim.inv())
-                };
+                let dim = if op == BinOp::Mul { lt.dim.mul(rt.dim) } else { lt.dim.mul(rt.dim.inv()) };
                 let Some(dim) = dim else {
-                    self.error(
-                        Diagnostic::error(at, "unit exponent overflow")
-                            .with_help("simplify the units of this expression"),
-                    );
+                    self.error(Diagnostic::error(at, "unit exponent overflow").with_help("simplify the units of this expression"));
                     return None;
                 };
                 let (x, y) = self.unify(b, (lt.v, l.1), (rt.v, r.1), at)?;
-                let v = b.binary(
-                    if op == BinOp::Mul {
-                        IrBin::Mul
-                    } else {
-                        IrBin::Div
-                    },
-                    x,
-                    y,
-                );
+                let v = b.binary(if op == BinOp::Mul { IrBin::Mul } else { IrBin::Div }, x, y);
                 Some(Tv { v, dim })
             }
             BinOp::Pow => self.pow(b, l, r, at),
             _ => {
                 if lt.dim != rt.dim {
                     self.error(
-                        Diagnostic::error(
-                            at,
-                            format!("unit mismatch: cannot compare {} with {}", lt.dim, rt.dim),
-                        )
-                        .with_secondary(l.1, format!("unit {}", lt.dim))
-                        .with_secondary(r.1, format!("unit {}", rt.dim))
-                        .with_help("compare quantities of the same unit"),
+                        Diagnostic::error(at, format!("unit mismatch: cannot compare {} with {}", lt.dim, rt.dim))
+                            .with_secondary(l.1, format!("unit {}", lt.dim))
+                            .with_secondary(r.1, format!("unit {}", rt.dim))
+                            .with_help("compare quantities of the same unit"),
                     );
                     return None;
                 }
@@ -1192,10 +889,7 @@ impl<'a> Checker<'a> {
                     BinOp::Eq => IrBin::Eq,
                     _ => IrBin::Ne,
                 };
-                Some(Tv {
-                    v: b.binary(irop, x, y),
-                    dim: Dim::NONE,
-                })
+                Some(Tv { v: b.binary(irop, x, y), dim: Dim::NONE })
             }
         }
     }
@@ -1217,17 +911,10 @@ impl<'a> Checker<'a> {
         self.real_only(b, l, "^")?;
         self.real_only(b, r, "^")?;
         if !r.0.dim.is_none() {
-            self.error(
-                Diagnostic::error(r.1, format!("exponent has unit {}", r.0.dim))
-                    .with_help("exponents must be dimensionless"),
-            );
+            self.error(Diagnostic::error(r.1, format!("exponent has unit {}", r.0.dim)).with_help("exponents must be dimensionless"));
             return None;
         }
-        let exponent = if b.ty(r.0.v) == Ty::REAL {
-            const_value(b, r.0.v)
-        } else {
-            None
-        };
+        let exponent = if b.ty(r.0.v) == Ty::REAL { const_value(b, r.0.v) } else { None };
         match exponent {
             Some(c) => {
                 let dim = if l.0.dim.is_none() {
@@ -1236,65 +923,44 @@ impl<'a> Checker<'a> {
                     match Ratio::from_f64(c).and_then(|p| l.0.dim.pow(p)) {
                         Some(d) => d,
                         None => {
-                            self.error(Diagnostic::error(r.1, format!("cannot raise a value with unit {} to the power {c}", l.0.dim)).with_help("use a rational exponent with a small denominator (e.g. -7/6), or make the base dimensionless"));
+                            self.error(
+                                Diagnostic::error(r.1, format!("cannot raise a value with unit {} to the power {c}", l.0.dim)).with_help(
+                                    "use a rational exponent with a small denominator (e.g. -7/6), or make the base dimensionless",
+                                ),
+                            );
                             return None;
                         }
                     }
                 };
-                Some(Tv {
-                    v: b.emit(Op::PowConst(l.0.v, c.to_bits())),
-                    dim,
-                })
+                Some(Tv { v: b.emit(Op::PowConst(l.0.v, c.to_bits())), dim })
             }
             None => {
                 if !l.0.dim.is_none() {
                     self.error(
-                        Diagnostic::error(
-                            at,
-                            format!("a value with unit {} needs a constant exponent", l.0.dim),
-                        )
-                        .with_help("make the base dimensionless, e.g. divide by a reference value"),
+                        Diagnostic::error(at, format!("a value with unit {} needs a constant exponent", l.0.dim))
+                            .with_help("make the base dimensionless, e.g. divide by a reference value"),
                     );
                     return None;
                 }
                 let (x, y) = self.unify(b, (l.0.v, l.1), (r.0.v, r.1), at)?;
-                Some(Tv {
-                    v: b.binary(IrBin::Pow, x, y),
-                    dim: Dim::NONE,
-                })
+                Some(Tv { v: b.binary(IrBin::Pow, x, y), dim: Dim::NONE })
             }
         }
     }
 
-    fn select(
-        &mut self,
-        b: &mut Builder,
-        c: (Tv, Span),
-        x: (Tv, Span),
-        y: (Tv, Span),
-        at: Span,
-    ) -> Option<Tv> {
+    fn select(&mut self, b: &mut Builder, c: (Tv, Span), x: (Tv, Span), y: (Tv, Span), at: Span) -> Option<Tv> {
         if b.ty(c.0.v).elem != Elem::Bool {
-            self.error(
-                Diagnostic::error(c.1, "condition is not a comparison")
-                    .with_help("write a comparison such as `x > 0`"),
-            );
+            self.error(Diagnostic::error(c.1, "condition is not a comparison").with_help("write a comparison such as `x > 0`"));
             return None;
         }
         self.no_bool(b, x, "a branch")?;
         self.no_bool(b, y, "a branch")?;
         if x.0.dim != y.0.dim {
             self.error(
-                Diagnostic::error(
-                    at,
-                    format!(
-                        "unit mismatch: branches have units {} and {}",
-                        x.0.dim, y.0.dim
-                    ),
-                )
-                .with_secondary(x.1, format!("unit {}", x.0.dim))
-                .with_secondary(y.1, format!("unit {}", y.0.dim))
-                .with_help("both branches must have the same unit"),
+                Diagnostic::error(at, format!("unit mismatch: branches have units {} and {}", x.0.dim, y.0.dim))
+                    .with_secondary(x.1, format!("unit {}", x.0.dim))
+                    .with_secondary(y.1, format!("unit {}", y.0.dim))
+                    .with_help("both branches must have the same unit"),
             );
             return None;
         }
@@ -1304,39 +970,22 @@ impl<'a> Checker<'a> {
         let cv = match (cty.shape, shape) {
             (Shape::Scalar, Shape::Grid(g)) => b.emit(Op::Broadcast(c.0.v, g)),
             (Shape::Grid(_), Shape::Scalar) => {
-                let t = Ty {
-                    elem: b.ty(xv).elem,
-                    shape: cty.shape,
-                };
+                let t = Ty { elem: b.ty(xv).elem, shape: cty.shape };
                 let (xv, yv) = (b.coerce(xv, t), b.coerce(yv, t));
-                return Some(Tv {
-                    v: b.emit(Op::Select(c.0.v, xv, yv)),
-                    dim: x.0.dim,
-                });
+                return Some(Tv { v: b.emit(Op::Select(c.0.v, xv, yv)), dim: x.0.dim });
             }
             (Shape::Grid(g1), Shape::Grid(g2)) if g1 != g2 => {
                 self.error(
-                    Diagnostic::error(at, "shape mismatch between condition and branches")
-                        .with_help("define them on the same grid"),
+                    Diagnostic::error(at, "shape mismatch between condition and branches").with_help("define them on the same grid"),
                 );
                 return None;
             }
             _ => c.0.v,
         };
-        Some(Tv {
-            v: b.emit(Op::Select(cv, xv, yv)),
-            dim: x.0.dim,
-        })
+        Some(Tv { v: b.emit(Op::Select(cv, xv, yv)), dim: x.0.dim })
     }
 
-    fn call(
-        &mut self,
-        b: &mut Builder,
-        scope: &mut Scope<'a>,
-        callee: &'a Spanned<String>,
-        args: &'a [ast::Arg],
-        at: Span,
-    ) -> Option<Tv> {
+    fn call(&mut self, b: &mut Builder, scope: &mut Scope<'a>, callee: &'a Spanned<String>, args: &'a [ast::Arg], at: Span) -> Option<Tv> {
         let name = callee.node.as_str();
         if let Some(m) = self.modules.get(name).copied() {
             return self.call_module(b, scope, m, callee, args, at);
@@ -1346,16 +995,16 @@ impl<'a> Checker<'a> {
             return None;
         }
         if name == "frequencies" || name == "times" {
-            self.error(Diagnostic::error(at, format!("`{name}(...)` defines a grid and can only appear in `grid NAME = {name}(...)`")).with_help("declare a grid in the scene and use its name"));
+            self.error(
+                Diagnostic::error(at, format!("`{name}(...)` defines a grid and can only appear in `grid NAME = {name}(...)`"))
+                    .with_help("declare a grid in the scene and use its name"),
+            );
             return None;
         }
         if let Some(a) = args.iter().find_map(|a| a.name.as_ref()) {
             self.error(
-                Diagnostic::error(
-                    a.span,
-                    format!("builtin `{name}` takes positional arguments only"),
-                )
-                .with_help(format!("remove `{}:`", a.node)),
+                Diagnostic::error(a.span, format!("builtin `{name}` takes positional arguments only"))
+                    .with_help(format!("remove `{}:`", a.node)),
             );
             return None;
         }
@@ -1371,11 +1020,7 @@ impl<'a> Checker<'a> {
             _ => &[1],
         };
         if !arity.contains(&vals.len()) {
-            let want = arity
-                .iter()
-                .map(|n| n.to_string())
-                .collect::<Vec<_>>()
-                .join(" or ");
+            let want = arity.iter().map(|n| n.to_string()).collect::<Vec<_>>().join(" or ");
             self.error(
                 Diagnostic::error(
                     at,
@@ -1386,18 +1031,8 @@ impl<'a> Checker<'a> {
                         if vals.len() == 1 { "was" } else { "were" }
                     ),
                 )
-                .with_label(format!(
-                    "{} argument{}",
-                    vals.len(),
-                    if vals.len() == 1 { "" } else { "s" }
-                ))
-                .with_help(
-                    BUILTINS
-                        .iter()
-                        .find(|x| x.0 == name)
-                        .map(|x| format!("`{name}`: {}", x.1))
-                        .unwrap_or_default(),
-                ),
+                .with_label(format!("{} argument{}", vals.len(), if vals.len() == 1 { "" } else { "s" }))
+                .with_help(BUILTINS.iter().find(|x| x.0 == name).map(|x| format!("`{name}`: {}", x.1)).unwrap_or_default()),
             );
             return None;
         }
@@ -1412,44 +1047,20 @@ impl<'a> Checker<'a> {
                 Some(())
             } else {
                 this.error(
-                    Diagnostic::error(
-                        v.1,
-                        format!(
-                            "`{name}` needs a dimensionless argument, found unit {}",
-                            v.0.dim
-                        ),
-                    )
-                    .with_help("divide by a reference value, or multiply frequencies by times"),
+                    Diagnostic::error(v.1, format!("`{name}` needs a dimensionless argument, found unit {}", v.0.dim))
+                        .with_help("divide by a reference value, or multiply frequencies by times"),
                 );
                 None
             }
         };
-        let un = |b: &mut Builder, u: UnOp, tv: Tv, dim: Dim| {
-            Some(Tv {
-                v: b.unary(u, tv.v),
-                dim,
-            })
-        };
+        let un = |b: &mut Builder, u: UnOp, tv: Tv, dim: Dim| Some(Tv { v: b.unary(u, tv.v), dim });
         let elem = b.ty(a.0.v).elem;
         match name {
             "sqrt" | "cbrt" => {
                 self.real_only(b, a, name)?;
-                let p = if name == "sqrt" {
-                    Ratio::new(1, 2)
-                } else {
-                    Ratio::new(1, 3)
-                };
+                let p = if name == "sqrt" { Ratio::new(1, 2) } else { Ratio::new(1, 3) };
                 let dim = p.and_then(|p| a.0.dim.pow(p))?;
-                un(
-                    b,
-                    if name == "sqrt" {
-                        UnOp::Sqrt
-                    } else {
-                        UnOp::Cbrt
-                    },
-                    a.0,
-                    dim,
-                )
+                un(b, if name == "sqrt" { UnOp::Sqrt } else { UnOp::Cbrt }, a.0, dim)
             }
             "exp" => {
                 dimless(self, a)?;
@@ -1478,19 +1089,13 @@ impl<'a> Checker<'a> {
                 if elem == Elem::Complex {
                     un(b, UnOp::Abs2, a.0, d)
                 } else {
-                    Some(Tv {
-                        v: b.mul(a.0.v, a.0.v),
-                        dim: d,
-                    })
+                    Some(Tv { v: b.mul(a.0.v, a.0.v), dim: d })
                 }
             }
             "re" | "im" | "conj" => {
                 if elem == Elem::Real {
                     return match name {
-                        "im" => Some(Tv {
-                            v: b.zero(b.ty(a.0.v)),
-                            dim: a.0.dim,
-                        }),
+                        "im" => Some(Tv { v: b.zero(b.ty(a.0.v)), dim: a.0.dim }),
                         _ => Some(a.0),
                     };
                 }
@@ -1504,11 +1109,8 @@ impl<'a> Checker<'a> {
             "sum" | "mean" | "max" | "min" if vals.len() == 1 => {
                 let Shape::Grid(g) = b.ty(a.0.v).shape else {
                     self.error(
-                        Diagnostic::error(
-                            a.1,
-                            format!("`{name}` reduces an array over a grid, but this is a scalar"),
-                        )
-                        .with_help("pass an array (a value defined on a grid)"),
+                        Diagnostic::error(a.1, format!("`{name}` reduces an array over a grid, but this is a scalar"))
+                            .with_help("pass an array (a value defined on a grid)"),
                     );
                     return None;
                 };
@@ -1536,28 +1138,20 @@ impl<'a> Checker<'a> {
                 self.real_only(b, vals[0], name)?;
                 self.real_only(b, vals[1], name)?;
                 self.same_dim(vals[0], vals[1], name, at)?;
-                let (x, y) =
-                    self.unify(b, (vals[0].0.v, vals[0].1), (vals[1].0.v, vals[1].1), at)?;
-                Some(Tv {
-                    v: b.binary(IrBin::Complex, x, y),
-                    dim: a.0.dim,
-                })
+                let (x, y) = self.unify(b, (vals[0].0.v, vals[0].1), (vals[1].0.v, vals[1].1), at)?;
+                Some(Tv { v: b.binary(IrBin::Complex, x, y), dim: a.0.dim })
             }
             "atan2" | "min" | "max" => {
                 self.real_only(b, vals[0], name)?;
                 self.real_only(b, vals[1], name)?;
                 self.same_dim(vals[0], vals[1], name, at)?;
-                let (x, y) =
-                    self.unify(b, (vals[0].0.v, vals[0].1), (vals[1].0.v, vals[1].1), at)?;
+                let (x, y) = self.unify(b, (vals[0].0.v, vals[0].1), (vals[1].0.v, vals[1].1), at)?;
                 let (op, dim) = match name {
                     "atan2" => (IrBin::Atan2, Dim::NONE),
                     "min" => (IrBin::Min, a.0.dim),
                     _ => (IrBin::Max, a.0.dim),
                 };
-                Some(Tv {
-                    v: b.binary(op, x, y),
-                    dim,
-                })
+                Some(Tv { v: b.binary(op, x, y), dim })
             }
             "clamp" => {
                 for v in &vals {
@@ -1565,14 +1159,10 @@ impl<'a> Checker<'a> {
                 }
                 self.same_dim(vals[0], vals[1], name, at)?;
                 self.same_dim(vals[0], vals[2], name, at)?;
-                let (x, lo) =
-                    self.unify(b, (vals[0].0.v, vals[0].1), (vals[1].0.v, vals[1].1), at)?;
+                let (x, lo) = self.unify(b, (vals[0].0.v, vals[0].1), (vals[1].0.v, vals[1].1), at)?;
                 let m = b.binary(IrBin::Max, x, lo);
                 let (m, hi) = self.unify(b, (m, vals[0].1), (vals[2].0.v, vals[2].1), at)?;
-                Some(Tv {
-                    v: b.binary(IrBin::Min, m, hi),
-                    dim: a.0.dim,
-                })
+                Some(Tv { v: b.binary(IrBin::Min, m, hi), dim: a.0.dim })
             }
             _ => {
                 self.error(self.unknown_function(callee));
@@ -1586,13 +1176,10 @@ impl<'a> Checker<'a> {
             return Some(());
         }
         self.error(
-            Diagnostic::error(
-                at,
-                format!("unit mismatch in `{name}`: {} and {}", x.0.dim, y.0.dim),
-            )
-            .with_secondary(x.1, format!("unit {}", x.0.dim))
-            .with_secondary(y.1, format!("unit {}", y.0.dim))
-            .with_help(format!("the arguments of `{name}` must have the same unit")),
+            Diagnostic::error(at, format!("unit mismatch in `{name}`: {} and {}", x.0.dim, y.0.dim))
+                .with_secondary(x.1, format!("unit {}", x.0.dim))
+                .with_secondary(y.1, format!("unit {}", y.0.dim))
+                .with_help(format!("the arguments of `{name}` must have the same unit")),
         );
         None
     }
@@ -1607,11 +1194,7 @@ impl<'a> Checker<'a> {
         at: Span,
     ) -> Option<Tv> {
         if let Some(pos) = self.call_stack.iter().position(|(n, _)| *n == m.name.node) {
-            let chain: Vec<String> = self.call_stack[pos..]
-                .iter()
-                .map(|(n, _)| n.clone())
-                .chain([m.name.node.clone()])
-                .collect();
+            let chain: Vec<String> = self.call_stack[pos..].iter().map(|(n, _)| n.clone()).chain([m.name.node.clone()]).collect();
             self.error(
                 Diagnostic::error(callee.span, format!("cyclic definition: module `{}` calls itself", m.name.node))
                     .with_label(format!("call chain {}", chain.join(" -> ")))
@@ -1651,31 +1234,19 @@ impl<'a> Checker<'a> {
                 Some(n) => match m.args.iter().position(|f| f.name.node == n.node) {
                     Some(i) if bound[i].is_some() => {
                         self.error(
-                            Diagnostic::error(
-                                n.span,
-                                format!("argument `{}` is given twice", n.node),
-                            )
-                            .with_help("give each argument once"),
+                            Diagnostic::error(n.span, format!("argument `{}` is given twice", n.node)).with_help("give each argument once"),
                         );
                         ok = false;
                     }
                     Some(i) => bound[i] = Some((&a.value, n.span)),
                     None => {
-                        let mut d = Diagnostic::error(
-                            n.span,
-                            format!("module `{}` has no argument `{}`", m.name.node, n.node),
-                        )
-                        .with_secondary(m.name.span, "module defined here");
-                        d = match did_you_mean(&n.node, m.args.iter().map(|a| a.name.node.as_str()))
-                        {
+                        let mut d = Diagnostic::error(n.span, format!("module `{}` has no argument `{}`", m.name.node, n.node))
+                            .with_secondary(m.name.span, "module defined here");
+                        d = match did_you_mean(&n.node, m.args.iter().map(|a| a.name.node.as_str())) {
                             Some(s) => d.with_help(format!("did you mean `{s}`?")),
                             None => d.with_help(format!(
                                 "its arguments are {}",
-                                m.args
-                                    .iter()
-                                    .map(|a| a.name.node.as_str())
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
+                                m.args.iter().map(|a| a.name.node.as_str()).collect::<Vec<_>>().join(", ")
                             )),
                         };
                         self.error(d);
@@ -1695,25 +1266,15 @@ impl<'a> Checker<'a> {
                     }
                     None => {
                         self.error(
-                            Diagnostic::error(
-                                at,
-                                format!(
-                                    "missing argument `{}` in call to `{}`",
-                                    formal.name.node, m.name.node
-                                ),
-                            )
-                            .with_secondary(formal.name.span, "declared here")
-                            .with_help(format!(
-                                "pass it, e.g. `{}: ...`, or give it a default in the module",
-                                formal.name.node
-                            )),
+                            Diagnostic::error(at, format!("missing argument `{}` in call to `{}`", formal.name.node, m.name.node))
+                                .with_secondary(formal.name.span, "declared here")
+                                .with_help(format!("pass it, e.g. `{}: ...`, or give it a default in the module", formal.name.node)),
                         );
                         None
                     }
                 },
             };
-            let tv =
-                tv.and_then(|tv| self.check_ann(b, &inner, formal.ty.as_ref(), tv, &formal.name));
+            let tv = tv.and_then(|tv| self.check_ann(b, &inner, formal.ty.as_ref(), tv, &formal.name));
             match tv {
                 Some(tv) => {
                     inner.values.insert(formal.name.node.clone(), tv);
@@ -1755,46 +1316,32 @@ fn unknown_name(span: Span, n: &str, cands: &[&str]) -> Diagnostic {
     let d = Diagnostic::error(span, format!("unknown name `{n}`")).with_label("not defined here");
     match did_you_mean(n, cands.iter().copied()) {
         Some(s) => d.with_help(format!("did you mean `{s}`?")),
-        None => d.with_help(format!(
-            "define it with `let {n} = ...`, or declare it as a `param` or `input`"
-        )),
+        None => d.with_help(format!("define it with `let {n} = ...`, or declare it as a `param` or `input`")),
     }
 }
 
 fn unit_mismatch(span: Span, want: Dim, found: Dim, what: &str) -> Diagnostic {
-    Diagnostic::error(
-        span,
-        format!("unit mismatch: {what} needs {want}, found {found}"),
-    )
-    .with_label(format!("this has unit {found}"))
-    .with_help(format!("write the value in a unit of {want}"))
+    Diagnostic::error(span, format!("unit mismatch: {what} needs {want}, found {found}"))
+        .with_label(format!("this has unit {found}"))
+        .with_help(format!("write the value in a unit of {want}"))
 }
 
 /// Collects the modules of the user's file and its imports into one table,
 /// reporting duplicates.
-pub fn collect_modules<'a>(
-    items: impl Iterator<Item = &'a Item>,
-    diags: &mut Vec<Diagnostic>,
-) -> HashMap<String, &'a ModuleDef> {
+pub fn collect_modules<'a>(items: impl Iterator<Item = &'a Item>, diags: &mut Vec<Diagnostic>) -> HashMap<String, &'a ModuleDef> {
     let mut out: HashMap<String, &'a ModuleDef> = HashMap::new();
     for item in items {
         if let Item::Module(m) = item {
             if BUILTINS.iter().any(|b| b.0 == m.name.node) {
                 diags.push(
-                    Diagnostic::error(
-                        m.name.span,
-                        format!("module `{}` has the name of a builtin", m.name.node),
-                    )
-                    .with_help("choose another name"),
+                    Diagnostic::error(m.name.span, format!("module `{}` has the name of a builtin", m.name.node))
+                        .with_help("choose another name"),
                 );
             } else if let Some(prev) = out.insert(m.name.node.clone(), m) {
                 diags.push(
-                    Diagnostic::error(
-                        m.name.span,
-                        format!("module `{}` is defined twice", m.name.node),
-                    )
-                    .with_secondary(prev.name.span, "first defined here")
-                    .with_help("rename one of them"),
+                    Diagnostic::error(m.name.span, format!("module `{}` is defined twice", m.name.node))
+                        .with_secondary(prev.name.span, "first defined here")
+                        .with_help("rename one of them"),
                 );
             }
         }

@@ -23,10 +23,7 @@
 
 use crate::ir::*;
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
-use cranelift_codegen::ir::{
-    types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind,
-    Type,
-};
+use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_jit::{JITBuilder, JITModule};
@@ -132,9 +129,7 @@ impl Drop for Kernel {
 
 impl fmt::Debug for Kernel {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("Kernel")
-            .field("layout", &self.layout)
-            .finish()
+        f.debug_struct("Kernel").field("layout", &self.layout).finish()
     }
 }
 
@@ -159,12 +154,7 @@ fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
     for (i, inst) in func.insts.iter().enumerate() {
         epoch[i] = match inst.op {
             Op::Reduce(_, a) => epoch[a.index()] + 1,
-            op => op
-                .operands()
-                .iter()
-                .map(|v| epoch[v.index()])
-                .max()
-                .unwrap_or(0),
+            op => op.operands().iter().map(|v| epoch[v.index()]).max().unwrap_or(0),
         };
     }
     let max_epoch = epoch.iter().copied().max().unwrap_or(0);
@@ -187,8 +177,7 @@ fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
             (_, Shape::Scalar) => scalars[epoch[i] as usize].push(i),
         }
     }
-    let mut loops: Vec<(u32, GridId, Vec<usize>)> =
-        loop_map.into_iter().map(|((e, g), m)| (e, g, m)).collect();
+    let mut loops: Vec<(u32, GridId, Vec<usize>)> = loop_map.into_iter().map(|((e, g), m)| (e, g, m)).collect();
     loops.sort_by_key(|(e, g, _)| (*e, *g));
     // Which arrays must be stored: outputs, and values read by another loop.
     let mut home: HashMap<usize, usize> = HashMap::new();
@@ -200,19 +189,14 @@ fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
         }
     }
     let mut stored = HashMap::new();
-    let need_store =
-        |v: usize, kind: BufferKind, layout: &mut Layout, stored: &mut HashMap<usize, usize>| {
-            if stored.contains_key(&v) && kind == BufferKind::Scratch {
-                return;
-            }
-            let ty = func.insts[v].ty;
-            layout.buffers.push(BufferInfo {
-                kind,
-                len: func.len_of(ty.shape),
-                complex: ty.elem == Elem::Complex,
-            });
-            stored.insert(v, layout.buffers.len() - 1);
-        };
+    let need_store = |v: usize, kind: BufferKind, layout: &mut Layout, stored: &mut HashMap<usize, usize>| {
+        if stored.contains_key(&v) && kind == BufferKind::Scratch {
+            return;
+        }
+        let ty = func.insts[v].ty;
+        layout.buffers.push(BufferInfo { kind, len: func.len_of(ty.shape), complex: ty.elem == Elem::Complex });
+        stored.insert(v, layout.buffers.len() - 1);
+    };
     for (oi, o) in func.outputs.iter().enumerate() {
         if func.ty(o.value).shape != Shape::Scalar {
             need_store(o.value.index(), BufferKind::Output(oi), layout, &mut stored);
@@ -229,12 +213,7 @@ fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
             }
         }
     }
-    Schedule {
-        epoch,
-        loops,
-        scalars,
-        stored,
-    }
+    Schedule { epoch, loops, scalars, stored }
 }
 
 /// A value in generated code: real part, and imaginary part for complex.
@@ -309,20 +288,8 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     let err = |e: &dyn fmt::Display| CodegenError(e.to_string());
     let mut flags = settings::builder();
     flags.set("opt_level", "speed").map_err(|e| err(&e))?;
-    flags
-        .set(
-            "enable_verifier",
-            if cfg!(debug_assertions) {
-                "true"
-            } else {
-                "false"
-            },
-        )
-        .map_err(|e| err(&e))?;
-    let isa = cranelift_native::builder()
-        .map_err(|e| err(&e))?
-        .finish(settings::Flags::new(flags))
-        .map_err(|e| err(&e))?;
+    flags.set("enable_verifier", if cfg!(debug_assertions) { "true" } else { "false" }).map_err(|e| err(&e))?;
+    let isa = cranelift_native::builder().map_err(|e| err(&e))?.finish(settings::Flags::new(flags)).map_err(|e| err(&e))?;
     let mut jb = JITBuilder::with_isa(isa, default_libcall_names());
     for (name, ptr) in libm_symbols() {
         jb.symbol(name, ptr);
@@ -333,16 +300,8 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     for _ in 0..3 {
         ctx.func.signature.params.push(AbiParam::new(ptr));
     }
-    let id = module
-        .declare_function("gwml_kernel", Linkage::Export, &ctx.func.signature)
-        .map_err(|e| err(&e))?;
-    let mut layout = Layout {
-        buffers: Vec::new(),
-        scalars: Vec::new(),
-        scalar_slots: 0,
-        loops: 0,
-        precision: func.precision,
-    };
+    let id = module.declare_function("gwml_kernel", Linkage::Export, &ctx.func.signature).map_err(|e| err(&e))?;
+    let mut layout = Layout { buffers: Vec::new(), scalars: Vec::new(), scalar_slots: 0, loops: 0, precision: func.precision };
     for (i, input) in func.inputs.iter().enumerate() {
         layout.buffers.push(BufferInfo {
             kind: BufferKind::Input(i),
@@ -356,11 +315,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
         let ty = func.ty(r);
         if ty.shape == Shape::Scalar && !layout.scalars.iter().any(|s| s.value == r) {
             let complex = ty.elem == Elem::Complex;
-            layout.scalars.push(ScalarSlot {
-                value: r,
-                slot: layout.scalar_slots,
-                complex,
-            });
+            layout.scalars.push(ScalarSlot { value: r, slot: layout.scalar_slots, complex });
             layout.scalar_slots += if complex { 2 } else { 1 };
         }
     }
@@ -377,11 +332,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
             imports: HashMap::new(),
             ptr,
             bufs: Vec::new(),
-            ft: if func.precision == Precision::F32 {
-                types::F32
-            } else {
-                types::F64
-            },
+            ft: if func.precision == Precision::F32 { types::F32 } else { types::F64 },
             sincos_slot: None,
         };
         g.emit_body()?;
@@ -391,21 +342,13 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     }
     let clif = ctx.func.display().to_string();
     let clif_insts = ctx.func.dfg.num_insts();
-    module
-        .define_function(id, &mut ctx)
-        .map_err(|e| CodegenError(format!("{e:?}")))?;
+    module.define_function(id, &mut ctx).map_err(|e| CodegenError(format!("{e:?}")))?;
     module.clear_context(&mut ctx);
     module.finalize_definitions().map_err(|e| err(&e))?;
     let code = module.get_finalized_function(id);
     // SAFETY: `code` is the finalized function with the signature declared above.
     let entry: KernelFn = unsafe { std::mem::transmute::<*const u8, KernelFn>(code) };
-    Ok(Kernel {
-        module: Some(module),
-        entry,
-        layout,
-        clif,
-        clif_insts,
-    })
+    Ok(Kernel { module: Some(module), entry, layout, clif, clif_insts })
 }
 
 struct Gen<'a> {
@@ -449,10 +392,7 @@ impl<'a> Gen<'a> {
         }
         let ft = self.ft;
         let mut sig = Signature::new(self.module.isa().default_call_conv());
-        let base = name
-            .strip_suffix('f')
-            .filter(|b| MATH1.contains(b) || MATH2.contains(b) || *b == "sincos")
-            .unwrap_or(name);
+        let base = name.strip_suffix('f').filter(|b| MATH1.contains(b) || MATH2.contains(b) || *b == "sincos").unwrap_or(name);
         if base == "sincos" {
             sig.params.push(AbiParam::new(ft));
             sig.params.push(AbiParam::new(self.ptr));
@@ -464,20 +404,13 @@ impl<'a> Gen<'a> {
             }
             sig.returns.push(AbiParam::new(ft));
         }
-        let id = self
-            .module
-            .declare_function(name, Linkage::Import, &sig)
-            .map_err(|e| CodegenError(e.to_string()))?;
+        let id = self.module.declare_function(name, Linkage::Import, &sig).map_err(|e| CodegenError(e.to_string()))?;
         let f = self.module.declare_func_in_func(id, self.b.func);
         self.imports.insert(name, f);
         Ok(f)
     }
 
-    fn call(
-        &mut self,
-        base: &'static str,
-        args: &[cranelift_codegen::ir::Value],
-    ) -> Result<cranelift_codegen::ir::Value, CodegenError> {
+    fn call(&mut self, base: &'static str, args: &[cranelift_codegen::ir::Value]) -> Result<cranelift_codegen::ir::Value, CodegenError> {
         let name: &'static str = if self.f32() { f32_name(base) } else { base };
         let f = self.import(name)?;
         let c = self.b.ins().call(f, args);
@@ -491,11 +424,7 @@ impl<'a> Gen<'a> {
         let slot = match self.sincos_slot {
             Some(s) => s,
             None => {
-                let s = self.b.create_sized_stack_slot(StackSlotData::new(
-                    StackSlotKind::ExplicitSlot,
-                    16,
-                    3,
-                ));
+                let s = self.b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 3));
                 self.sincos_slot = Some(s);
                 s
             }
@@ -519,12 +448,7 @@ impl<'a> Gen<'a> {
         let (params_ptr, bufs_ptr, scalars_ptr) = (params[0], params[1], params[2]);
         let flags = MemFlagsData::trusted();
         for k in 0..self.layout.buffers.len() {
-            let p = self.b.ins().load(
-                self.ptr,
-                flags,
-                bufs_ptr,
-                (k * self.ptr.bytes() as usize) as i32,
-            );
+            let p = self.b.ins().load(self.ptr, flags, bufs_ptr, (k * self.ptr.bytes() as usize) as i32);
             self.bufs.push(p);
         }
         let max_epoch = self.sched.scalars.len();
@@ -533,9 +457,7 @@ impl<'a> Gen<'a> {
                 let v = self.scalar_inst(i, params_ptr)?;
                 self.vals.insert(i, v);
             }
-            let loops: Vec<usize> = (0..self.sched.loops.len())
-                .filter(|l| self.sched.loops[*l].0 as usize == e)
-                .collect();
+            let loops: Vec<usize> = (0..self.sched.loops.len()).filter(|l| self.sched.loops[*l].0 as usize == e).collect();
             for l in loops {
                 self.emit_loop(l)?;
             }
@@ -544,15 +466,11 @@ impl<'a> Gen<'a> {
         for s in &self.layout.scalars {
             let v = self.vals[&s.value.index()];
             let re = self.widen(v.re);
-            self.b
-                .ins()
-                .store(flags, re, scalars_ptr, (s.slot * 8) as i32);
+            self.b.ins().store(flags, re, scalars_ptr, (s.slot * 8) as i32);
             if s.complex {
                 let im = v.im.unwrap_or(v.re);
                 let im = self.widen(im);
-                self.b
-                    .ins()
-                    .store(flags, im, scalars_ptr, (s.slot * 8 + 8) as i32);
+                self.b.ins().store(flags, im, scalars_ptr, (s.slot * 8 + 8) as i32);
             }
         }
         self.b.ins().return_(&[]);
@@ -575,11 +493,7 @@ impl<'a> Gen<'a> {
         }
     }
 
-    fn scalar_inst(
-        &mut self,
-        i: usize,
-        params_ptr: cranelift_codegen::ir::Value,
-    ) -> Result<Cv, CodegenError> {
+    fn scalar_inst(&mut self, i: usize, params_ptr: cranelift_codegen::ir::Value) -> Result<Cv, CodegenError> {
         let inst = self.func.insts[i];
         Ok(match inst.op {
             Op::Const(b) => Cv::real(self.fconst(f64::from_bits(b))),
@@ -589,12 +503,7 @@ impl<'a> Gen<'a> {
                 Cv { re, im: Some(im) }
             }
             Op::Param(p) => {
-                let v = self.b.ins().load(
-                    types::F64,
-                    MemFlagsData::trusted(),
-                    params_ptr,
-                    (p * 8) as i32,
-                );
+                let v = self.b.ins().load(types::F64, MemFlagsData::trusted(), params_ptr, (p * 8) as i32);
                 Cv::real(self.narrow(v))
             }
             Op::Input(k) => {
@@ -615,21 +524,11 @@ impl<'a> Gen<'a> {
         let addr = self.b.ins().iadd(self.bufs[buf], off);
         let flags = MemFlagsData::trusted();
         let re = self.b.ins().load(self.ft, flags, addr, 0);
-        let im = complex.then(|| {
-            self.b
-                .ins()
-                .load(self.ft, flags, addr, self.ft.bytes() as i32)
-        });
+        let im = complex.then(|| self.b.ins().load(self.ft, flags, addr, self.ft.bytes() as i32));
         Cv { re, im }
     }
 
-    fn store_elem(
-        &mut self,
-        buf: usize,
-        index: cranelift_codegen::ir::Value,
-        v: Cv,
-        complex: bool,
-    ) {
+    fn store_elem(&mut self, buf: usize, index: cranelift_codegen::ir::Value, v: Cv, complex: bool) {
         let size = self.ft.bytes() as i64 * if complex { 2 } else { 1 };
         let off = self.b.ins().imul_imm_s(index, size);
         let addr = self.b.ins().iadd(self.bufs[buf], off);
@@ -650,11 +549,7 @@ impl<'a> Gen<'a> {
         for &m in &members {
             if let Op::Reduce(r, a) = self.func.insts[m].op {
                 let complex = self.func.ty(a).elem == Elem::Complex;
-                let init = if r == Reduce::Max {
-                    f64::NEG_INFINITY
-                } else {
-                    0.0
-                };
+                let init = if r == Reduce::Max { f64::NEG_INFINITY } else { 0.0 };
                 let re = self.b.declare_var(types::F64);
                 let v = self.b.ins().f64const(init);
                 self.b.def_var(re, v);
@@ -679,26 +574,15 @@ impl<'a> Gen<'a> {
         let more = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, i, len);
         self.b.ins().brif(more, body, &[], exit, &[]);
         self.b.switch_to_block(body);
-        let mut lc = LoopCtx {
-            epoch: self.sched.loops[l].0,
-            index: i,
-            vals: HashMap::new(),
-        };
+        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: i, vals: HashMap::new() };
         for &m in &members {
             let inst = self.func.insts[m];
             if let Op::Reduce(r, a) = inst.op {
                 let x = self.loop_operand(&mut lc, a)?;
-                let (_, re_var, im_var) = *accs
-                    .iter()
-                    .find(|(k, ..)| *k == m)
-                    .expect("accumulator declared");
+                let (_, re_var, im_var) = *accs.iter().find(|(k, ..)| *k == m).expect("accumulator declared");
                 let acc = self.b.use_var(re_var);
                 let xr = self.widen(x.re);
-                let next = if r == Reduce::Max {
-                    self.b.ins().fmax(acc, xr)
-                } else {
-                    self.b.ins().fadd(acc, xr)
-                };
+                let next = if r == Reduce::Max { self.b.ins().fmax(acc, xr) } else { self.b.ins().fadd(acc, xr) };
                 self.b.def_var(re_var, next);
                 if let (Some(iv), Some(xi)) = (im_var, x.im) {
                     let acc = self.b.use_var(iv);
@@ -710,6 +594,13 @@ impl<'a> Gen<'a> {
             }
             let v = self.loop_operand(&mut lc, Value(m as u32))?;
             if let Some(&buf) = self.sched.stored.get(&m) {
+                let v = if inst.ty.elem == Elem::Bool {
+                    // Truth values travel between loops as 1.0 / 0.0.
+                    let (one, zero) = (self.fconst(1.0), self.fconst(0.0));
+                    Cv::real(self.b.ins().select(v.re, one, zero))
+                } else {
+                    v
+                };
                 self.store_elem(buf, lc.index, v, inst.ty.elem == Elem::Complex);
             }
         }
@@ -755,7 +646,13 @@ impl<'a> Gen<'a> {
             // Stored by an earlier loop: reload instead of recomputing.
             _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < lc.epoch => {
                 let buf = self.sched.stored[&i];
-                self.load_elem(buf, lc.index, inst.ty.elem == Elem::Complex)
+                let v = self.load_elem(buf, lc.index, inst.ty.elem == Elem::Complex);
+                if inst.ty.elem == Elem::Bool {
+                    let zero = self.fconst(0.0);
+                    Cv::real(self.b.ins().fcmp(FloatCC::NotEqual, v.re, zero))
+                } else {
+                    v
+                }
             }
             op => {
                 let mut ops = Vec::new();
@@ -770,31 +667,20 @@ impl<'a> Gen<'a> {
     }
 
     /// Emits one elementwise operation on already-computed operands.
-    fn elementwise(
-        &mut self,
-        inst: Inst,
-        ops: &[Cv],
-        _lc: Option<&mut LoopCtx>,
-    ) -> Result<Cv, CodegenError> {
+    fn elementwise(&mut self, inst: Inst, ops: &[Cv], _lc: Option<&mut LoopCtx>) -> Result<Cv, CodegenError> {
         let ins_complex = |k: usize| ops.get(k).is_some_and(|o| o.im.is_some());
         Ok(match inst.op {
             Op::Unary(u, _) => {
                 let a = ops[0];
                 let x = a.re;
                 match u {
-                    UnOp::Neg => Cv {
-                        re: self.b.ins().fneg(x),
-                        im: a.im.map(|i| self.b.ins().fneg(i)),
-                    },
+                    UnOp::Neg => Cv { re: self.b.ins().fneg(x), im: a.im.map(|i| self.b.ins().fneg(i)) },
                     UnOp::Sqrt => Cv::real(self.b.ins().sqrt(x)),
                     UnOp::Cbrt => Cv::real(self.call("cbrt", &[x])?),
                     UnOp::Exp if ins_complex(0) => {
                         let e = self.call("exp", &[x])?;
                         let (s, c) = self.sincos(a.im.expect("complex"))?;
-                        Cv {
-                            re: self.b.ins().fmul(e, c),
-                            im: Some(self.b.ins().fmul(e, s)),
-                        }
+                        Cv { re: self.b.ins().fmul(e, c), im: Some(self.b.ins().fmul(e, s)) }
                     }
                     UnOp::Exp => Cv::real(self.call("exp", &[x])?),
                     UnOp::Log => Cv::real(self.call("log", &[x])?),
@@ -823,10 +709,7 @@ impl<'a> Gen<'a> {
                     }
                     UnOp::Re => Cv::real(x),
                     UnOp::Im => Cv::real(a.im.expect("complex")),
-                    UnOp::Conj => Cv {
-                        re: x,
-                        im: a.im.map(|i| self.b.ins().fneg(i)),
-                    },
+                    UnOp::Conj => Cv { re: x, im: a.im.map(|i| self.b.ins().fneg(i)) },
                     UnOp::Abs2 => {
                         let im = a.im.expect("complex");
                         let rr = self.b.ins().fmul(x, x);
@@ -837,10 +720,7 @@ impl<'a> Gen<'a> {
                         let (s, c) = self.sincos(x)?;
                         Cv { re: c, im: Some(s) }
                     }
-                    UnOp::ToComplex => Cv {
-                        re: x,
-                        im: Some(self.fconst(0.0)),
-                    },
+                    UnOp::ToComplex => Cv { re: x, im: Some(self.fconst(0.0)) },
                 }
             }
             Op::Binary(op, _, _) => {
@@ -849,37 +729,24 @@ impl<'a> Gen<'a> {
                 match op {
                     BinOp::Add => Cv {
                         re: self.b.ins().fadd(a.re, c.re),
-                        im: complex.then(|| {
-                            self.b
-                                .ins()
-                                .fadd(a.im.expect("complex"), c.im.expect("complex"))
-                        }),
+                        im: complex.then(|| self.b.ins().fadd(a.im.expect("complex"), c.im.expect("complex"))),
                     },
                     BinOp::Sub => Cv {
                         re: self.b.ins().fsub(a.re, c.re),
-                        im: complex.then(|| {
-                            self.b
-                                .ins()
-                                .fsub(a.im.expect("complex"), c.im.expect("complex"))
-                        }),
+                        im: complex.then(|| self.b.ins().fsub(a.im.expect("complex"), c.im.expect("complex"))),
                     },
                     BinOp::Mul if complex => {
-                        let (ar, ai, cr, ci) =
-                            (a.re, a.im.expect("complex"), c.re, c.im.expect("complex"));
+                        let (ar, ai, cr, ci) = (a.re, a.im.expect("complex"), c.re, c.im.expect("complex"));
                         let rr = self.b.ins().fmul(ar, cr);
                         let ii = self.b.ins().fmul(ai, ci);
                         let ri = self.b.ins().fmul(ar, ci);
                         let ir = self.b.ins().fmul(ai, cr);
-                        Cv {
-                            re: self.b.ins().fsub(rr, ii),
-                            im: Some(self.b.ins().fadd(ri, ir)),
-                        }
+                        Cv { re: self.b.ins().fsub(rr, ii), im: Some(self.b.ins().fadd(ri, ir)) }
                     }
                     BinOp::Mul => Cv::real(self.b.ins().fmul(a.re, c.re)),
                     BinOp::Div if complex => {
                         // a * conj(c) / |c|^2, as in eval::complex_div.
-                        let (ar, ai, cr, ci) =
-                            (a.re, a.im.expect("complex"), c.re, c.im.expect("complex"));
+                        let (ar, ai, cr, ci) = (a.re, a.im.expect("complex"), c.re, c.im.expect("complex"));
                         let cc = self.b.ins().fmul(cr, cr);
                         let dd = self.b.ins().fmul(ci, ci);
                         let d = self.b.ins().fadd(cc, dd);
@@ -889,10 +756,7 @@ impl<'a> Gen<'a> {
                         let ir = self.b.ins().fmul(ai, cr);
                         let ri = self.b.ins().fmul(ar, ci);
                         let num_im = self.b.ins().fsub(ir, ri);
-                        Cv {
-                            re: self.b.ins().fdiv(num_re, d),
-                            im: Some(self.b.ins().fdiv(num_im, d)),
-                        }
+                        Cv { re: self.b.ins().fdiv(num_re, d), im: Some(self.b.ins().fdiv(num_im, d)) }
                     }
                     BinOp::Div => Cv::real(self.b.ins().fdiv(a.re, c.re)),
                     BinOp::Pow => Cv::real(self.call("pow", &[a.re, c.re])?),
@@ -909,28 +773,17 @@ impl<'a> Gen<'a> {
                         Cv::real(self.b.ins().fcmp(cc, a.re, c.re))
                     }
                     BinOp::Eq | BinOp::Ne => {
-                        let cc = if op == BinOp::Eq {
-                            FloatCC::Equal
-                        } else {
-                            FloatCC::NotEqual
-                        };
+                        let cc = if op == BinOp::Eq { FloatCC::Equal } else { FloatCC::NotEqual };
                         let r = self.b.ins().fcmp(cc, a.re, c.re);
                         match (a.im, c.im) {
                             (Some(ai), Some(ci)) => {
                                 let i = self.b.ins().fcmp(cc, ai, ci);
-                                Cv::real(if op == BinOp::Eq {
-                                    self.b.ins().band(r, i)
-                                } else {
-                                    self.b.ins().bor(r, i)
-                                })
+                                Cv::real(if op == BinOp::Eq { self.b.ins().band(r, i) } else { self.b.ins().bor(r, i) })
                             }
                             _ => Cv::real(r),
                         }
                     }
-                    BinOp::Complex => Cv {
-                        re: a.re,
-                        im: Some(c.re),
-                    },
+                    BinOp::Complex => Cv { re: a.re, im: Some(c.re) },
                 }
             }
             Op::PowConst(_, bits) => Cv::real(self.pow_const(ops[0].re, f64::from_bits(bits))?),
@@ -944,21 +797,13 @@ impl<'a> Gen<'a> {
                 Cv { re, im }
             }
             Op::Broadcast(..) => ops[0],
-            other => {
-                return Err(CodegenError(format!(
-                    "unexpected operation in elementwise code: {other:?}"
-                )))
-            }
+            other => return Err(CodegenError(format!("unexpected operation in elementwise code: {other:?}"))),
         })
     }
 
     /// `x^c`: repeated multiplication for small integer c, sqrt for ±1/2,
     /// otherwise a call to `pow`.
-    fn pow_const(
-        &mut self,
-        x: cranelift_codegen::ir::Value,
-        c: f64,
-    ) -> Result<cranelift_codegen::ir::Value, CodegenError> {
+    fn pow_const(&mut self, x: cranelift_codegen::ir::Value, c: f64) -> Result<cranelift_codegen::ir::Value, CodegenError> {
         if c == c.trunc() && c.abs() <= 16.0 {
             let n = c.abs() as u32;
             let mut result: Option<cranelift_codegen::ir::Value> = None;

@@ -84,23 +84,11 @@ impl Diagnostic {
             (id(s.file), start..s.end.clamp(start, len))
         };
         let mut report = Report::build(kind, clamp(self.span))
-            .with_config(
-                Config::default()
-                    .with_color(color)
-                    .with_index_type(IndexType::Byte),
-            )
+            .with_config(Config::default().with_color(color).with_index_type(IndexType::Byte))
             .with_message(&self.message)
-            .with_label(
-                Label::new(clamp(self.span))
-                    .with_message(&self.label)
-                    .with_color(Color::Red),
-            );
+            .with_label(Label::new(clamp(self.span)).with_message(&self.label).with_color(Color::Red));
         for (span, label) in &self.secondary {
-            report = report.with_label(
-                Label::new(clamp(*span))
-                    .with_message(label)
-                    .with_color(Color::Blue),
-            );
+            report = report.with_label(Label::new(clamp(*span)).with_message(label).with_color(Color::Blue));
         }
         if let Some(help) = &self.help {
             report = report.with_help(help);
@@ -108,11 +96,7 @@ impl Diagnostic {
         for note in &self.notes {
             report = report.with_note(note);
         }
-        let cache = ariadne::sources(
-            sources
-                .files()
-                .map(|(_, f)| (f.name.clone(), f.text.clone())),
-        );
+        let cache = ariadne::sources(sources.files().map(|(_, f)| (f.name.clone(), f.text.clone())));
         let mut out = Vec::new();
         if report.finish().write(cache, &mut out).is_err() {
             return format!("error: {}", self.message);
@@ -123,18 +107,11 @@ impl Diagnostic {
 
 /// Renders every diagnostic, separated by blank lines.
 pub fn render_all(diags: &[Diagnostic], sources: &SourceMap, color: bool) -> String {
-    diags
-        .iter()
-        .map(|d| d.render(sources, color))
-        .collect::<Vec<_>>()
-        .join("")
+    diags.iter().map(|d| d.render(sources, color)).collect::<Vec<_>>().join("")
 }
 
 /// The closest candidate to `name` by edit distance, if close enough to suggest.
-pub fn did_you_mean<'a>(
-    name: &str,
-    candidates: impl IntoIterator<Item = &'a str>,
-) -> Option<&'a str> {
+pub fn did_you_mean<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
     let mut best: Option<(usize, &str)> = None;
     for c in candidates {
         let d = edit_distance(name, c);
@@ -161,9 +138,7 @@ fn edit_distance(a: &str, b: &str) -> usize {
     for i in 1..=a.len() {
         for j in 1..=b.len() {
             let cost = usize::from(a[i - 1] != b[j - 1]);
-            let mut best = (d[i - 1][j] + 1)
-                .min(d[i][j - 1] + 1)
-                .min(d[i - 1][j - 1] + cost);
+            let mut best = (d[i - 1][j] + 1).min(d[i][j - 1] + 1).min(d[i - 1][j - 1] + cost);
             if i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] {
                 best = best.min(d[i - 2][j - 2] + 1);
             }

@@ -94,11 +94,7 @@ impl Program {
         let (ast, mut diags) = syntax::parse(text, file);
         let mut std_asts: Vec<(String, ast::SourceFileAst)> = Vec::new();
         load_imports(&ast, &mut sources, &mut std_asts, &mut diags);
-        let mut program = Program {
-            sources,
-            ast,
-            scenes: Vec::new(),
-        };
+        let mut program = Program { sources, ast, scenes: Vec::new() };
         // Modules: the user's, plus every module of every loaded stdlib file.
         let mut all_items: Vec<&ast::Item> = Vec::new();
         for (_, a) in &std_asts {
@@ -122,12 +118,9 @@ impl Program {
                 if let ast::Item::Scene(s) = item {
                     if let Some(prev) = seen.insert(s.name.node.clone(), s.name.span) {
                         diags.push(
-                            Diagnostic::error(
-                                s.name.span,
-                                format!("scene `{}` is defined twice", s.name.node),
-                            )
-                            .with_secondary(prev, "first defined here")
-                            .with_help("rename one of them"),
+                            Diagnostic::error(s.name.span, format!("scene `{}` is defined twice", s.name.node))
+                                .with_secondary(prev, "first defined here")
+                                .with_help("rename one of them"),
                         );
                         continue;
                     }
@@ -140,10 +133,7 @@ impl Program {
         }
         if !diags.is_empty() {
             dedup(&mut diags);
-            return Err(CompileError {
-                diagnostics: diags,
-                sources: program.sources,
-            });
+            return Err(CompileError { diagnostics: diags, sources: program.sources });
         }
         program.scenes = scenes;
         Ok(program)
@@ -161,14 +151,7 @@ impl Program {
                 let names = self.scene_names();
                 match crate::diagnostics::did_you_mean(n, names.iter().copied()) {
                     Some(s) => format!("no scene `{n}`; did you mean `{s}`?"),
-                    None => format!(
-                        "no scene `{n}`; scenes: {}",
-                        if names.is_empty() {
-                            "(none)".into()
-                        } else {
-                            names.join(", ")
-                        }
-                    ),
+                    None => format!("no scene `{n}`; scenes: {}", if names.is_empty() { "(none)".into() } else { names.join(", ") }),
                 }
             }),
             None => match self.scenes.as_slice() {
@@ -177,10 +160,7 @@ impl Program {
                 many => Err(format!(
                     "the file defines {} scenes ({}); choose one with --scene",
                     many.len(),
-                    many.iter()
-                        .map(|s| s.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    many.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
                 )),
             },
         }
@@ -208,11 +188,7 @@ pub fn run_passes(checked: Function) -> ScenePipeline {
     let t = Instant::now();
     let optimized = passes::simplify(&adjoint);
     times.push(("simplify", t.elapsed()));
-    for (stage, f) in [
-        ("prune", &pruned),
-        ("adjoint", &adjoint),
-        ("simplify", &optimized),
-    ] {
+    for (stage, f) in [("prune", &pruned), ("adjoint", &adjoint), ("simplify", &optimized)] {
         if let Err(e) = f.verify() {
             // A verifier failure is a compiler bug; surface it loudly in debug builds.
             debug_assert!(false, "IR invalid after {stage}: {e}");
@@ -225,13 +201,7 @@ pub fn run_passes(checked: Function) -> ScenePipeline {
         optimized_ops: optimized.insts.len(),
         times,
     };
-    ScenePipeline {
-        checked,
-        pruned,
-        adjoint,
-        optimized,
-        stats,
-    }
+    ScenePipeline { checked, pruned, adjoint, optimized, stats }
 }
 
 fn dedup(diags: &mut Vec<Diagnostic>) {
@@ -249,33 +219,18 @@ fn load_imports(
         let ast::Item::Use(u) = item else { continue };
         let path: Vec<&str> = u.path.iter().map(|p| p.node.as_str()).collect();
         if path.first() != Some(&"std") || path.len() != 2 {
-            diags.push(
-                Diagnostic::error(u.span, format!("cannot import from `{}`", path.join("::")))
-                    .with_help(format!(
-                    "imports name a standard library file: `use std::FILE::{{NAME}}`; files: {}",
-                    stdlib::FILES
-                        .iter()
-                        .map(|f| f.0)
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )),
-            );
+            diags.push(Diagnostic::error(u.span, format!("cannot import from `{}`", path.join("::"))).with_help(format!(
+                "imports name a standard library file: `use std::FILE::{{NAME}}`; files: {}",
+                stdlib::FILES.iter().map(|f| f.0).collect::<Vec<_>>().join(", ")
+            )));
             continue;
         }
         let name = path[1];
         let Some(text) = stdlib::source(name) else {
-            let mut d =
-                Diagnostic::error(u.path[1].span, format!("no standard library file `{name}`"));
+            let mut d = Diagnostic::error(u.path[1].span, format!("no standard library file `{name}`"));
             d = match crate::diagnostics::did_you_mean(name, stdlib::FILES.iter().map(|f| f.0)) {
                 Some(s) => d.with_help(format!("did you mean `std::{s}`?")),
-                None => d.with_help(format!(
-                    "files: {}",
-                    stdlib::FILES
-                        .iter()
-                        .map(|f| f.0)
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )),
+                None => d.with_help(format!("files: {}", stdlib::FILES.iter().map(|f| f.0).collect::<Vec<_>>().join(", "))),
             };
             diags.push(d);
             continue;
@@ -288,30 +243,16 @@ fn load_imports(
             loaded.push((display.clone(), std_ast.clone()));
             load_imports(&std_ast, sources, loaded, diags);
         }
-        let std_ast = &loaded
-            .iter()
-            .find(|(n, _)| *n == display)
-            .expect("just loaded")
-            .1;
+        let std_ast = &loaded.iter().find(|(n, _)| *n == display).expect("just loaded").1;
         for n in &u.names {
-            let exists = std_ast
-                .items
-                .iter()
-                .any(|i| matches!(i, ast::Item::Module(m) if m.name.node == n.node));
+            let exists = std_ast.items.iter().any(|i| matches!(i, ast::Item::Module(m) if m.name.node == n.node));
             if !exists {
                 let names: Vec<&str> = std_ast
                     .items
                     .iter()
-                    .filter_map(|i| {
-                        if let ast::Item::Module(m) = i {
-                            Some(m.name.node.as_str())
-                        } else {
-                            None
-                        }
-                    })
+                    .filter_map(|i| if let ast::Item::Module(m) = i { Some(m.name.node.as_str()) } else { None })
                     .collect();
-                let mut d =
-                    Diagnostic::error(n.span, format!("`std::{name}` has no module `{}`", n.node));
+                let mut d = Diagnostic::error(n.span, format!("`std::{name}` has no module `{}`", n.node));
                 d = match crate::diagnostics::did_you_mean(&n.node, names.iter().copied()) {
                     Some(s) => d.with_help(format!("did you mean `{s}`?")),
                     None => d.with_help(format!("it defines: {}", names.join(", "))),

@@ -82,10 +82,7 @@ pub fn binary(op: BinOp, a: C64, b: C64, elem: Elem) -> C64 {
 /// the code generator also uses.
 pub fn complex_div(a: C64, b: C64) -> C64 {
     let d = b.re * b.re + b.im * b.im;
-    C64::new(
-        (a.re * b.re + a.im * b.im) / d,
-        (a.im * b.re - a.re * b.im) / d,
-    )
+    C64::new((a.re * b.re + a.im * b.im) / d, (a.im * b.re - a.re * b.im) / d)
 }
 
 /// `x^c` for a constant exponent.

@@ -19,10 +19,7 @@ pub struct InterpResult {
 impl InterpResult {
     /// The value of output `name`.
     pub fn output(&self, func: &Function, name: &str) -> Option<&Tensor> {
-        func.outputs
-            .iter()
-            .find(|o| o.name == name)
-            .map(|o| &self.values[o.value.index()])
+        func.outputs.iter().find(|o| o.name == name).map(|o| &self.values[o.value.index()])
     }
     /// The gradient d`output`/d`param` (per base unit of the param).
     pub fn grad(&self, func: &Function, output: &str, param: &str) -> Option<f64> {
@@ -56,56 +53,26 @@ pub fn interpret(func: &Function, params: &[f64], inputs: &[Tensor]) -> InterpRe
             Op::Input(i) => inputs[i as usize].clone(),
             Op::GridCoord(g) => {
                 let gr = &func.grids[g.0 as usize];
-                (0..gr.len)
-                    .map(|i| C64::new(gr.start + i as f64 * gr.step, 0.0))
-                    .collect()
+                (0..gr.len).map(|i| C64::new(gr.start + i as f64 * gr.step, 0.0)).collect()
             }
-            Op::Unary(u, a) => (0..len)
-                .map(|i| eval::unary(u, get(a, i), elem_of(a)))
-                .collect(),
-            Op::Binary(op, x, y) => (0..len)
-                .map(|i| eval::binary(op, get(x, i), get(y, i), elem_of(x)))
-                .collect(),
-            Op::PowConst(a, c) => (0..len)
-                .map(|i| C64::new(eval::pow_const(get(a, i).re, f64::from_bits(c)), 0.0))
-                .collect(),
-            Op::Select(c, x, y) => (0..len)
-                .map(|i| {
-                    if get(c, i).re != 0.0 {
-                        get(x, i)
-                    } else {
-                        get(y, i)
-                    }
-                })
-                .collect(),
+            Op::Unary(u, a) => (0..len).map(|i| eval::unary(u, get(a, i), elem_of(a))).collect(),
+            Op::Binary(op, x, y) => (0..len).map(|i| eval::binary(op, get(x, i), get(y, i), elem_of(x))).collect(),
+            Op::PowConst(a, c) => (0..len).map(|i| C64::new(eval::pow_const(get(a, i).re, f64::from_bits(c)), 0.0)).collect(),
+            Op::Select(c, x, y) => (0..len).map(|i| if get(c, i).re != 0.0 { get(x, i) } else { get(y, i) }).collect(),
             Op::Broadcast(a, _) => vec![get(a, 0); len],
             Op::Reduce(Reduce::Sum, a) => {
                 // Pairwise-free but compensated (Kahan–Babuška) so the oracle is accurate.
                 let (mut s, mut c) = (C64::new(0.0, 0.0), C64::new(0.0, 0.0));
                 for x in &values[a.index()] {
                     let t = s + x;
-                    let re = if s.re.abs() >= x.re.abs() {
-                        (s.re - t.re) + x.re
-                    } else {
-                        (x.re - t.re) + s.re
-                    };
-                    let im = if s.im.abs() >= x.im.abs() {
-                        (s.im - t.im) + x.im
-                    } else {
-                        (x.im - t.im) + s.im
-                    };
+                    let re = if s.re.abs() >= x.re.abs() { (s.re - t.re) + x.re } else { (x.re - t.re) + s.re };
+                    let im = if s.im.abs() >= x.im.abs() { (s.im - t.im) + x.im } else { (x.im - t.im) + s.im };
                     c += C64::new(re, im);
                     s = t;
                 }
                 vec![s + c]
             }
-            Op::Reduce(Reduce::Max, a) => vec![C64::new(
-                values[a.index()]
-                    .iter()
-                    .map(|x| x.re)
-                    .fold(f64::NEG_INFINITY, f64::max),
-                0.0,
-            )],
+            Op::Reduce(Reduce::Max, a) => vec![C64::new(values[a.index()].iter().map(|x| x.re).fold(f64::NEG_INFINITY, f64::max), 0.0)],
         };
         values.push(t);
     }

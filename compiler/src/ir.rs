@@ -41,21 +41,12 @@ pub struct Ty {
 
 impl Ty {
     /// A real scalar.
-    pub const REAL: Ty = Ty {
-        elem: Elem::Real,
-        shape: Shape::Scalar,
-    };
+    pub const REAL: Ty = Ty { elem: Elem::Real, shape: Shape::Scalar };
     /// A complex scalar.
-    pub const COMPLEX: Ty = Ty {
-        elem: Elem::Complex,
-        shape: Shape::Scalar,
-    };
+    pub const COMPLEX: Ty = Ty { elem: Elem::Complex, shape: Shape::Scalar };
     /// The same shape with another element kind.
     pub fn with_elem(self, elem: Elem) -> Ty {
-        Ty {
-            elem,
-            shape: self.shape,
-        }
+        Ty { elem, shape: self.shape }
     }
 }
 
@@ -189,11 +180,7 @@ impl Op {
     /// The operands, in order.
     pub fn operands(&self) -> Vec<Value> {
         match *self {
-            Op::Const(_)
-            | Op::ConstComplex(..)
-            | Op::Param(_)
-            | Op::Input(_)
-            | Op::GridCoord(_) => vec![],
+            Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) => vec![],
             Op::Unary(_, a) | Op::PowConst(a, _) | Op::Broadcast(a, _) | Op::Reduce(_, a) => {
                 vec![a]
             }
@@ -348,11 +335,7 @@ impl Function {
 
     /// All values the function returns (outputs, then computed gradients).
     pub fn roots(&self) -> Vec<Value> {
-        self.outputs
-            .iter()
-            .map(|o| o.value)
-            .chain(self.grads.iter().filter_map(|g| g.value))
-            .collect()
+        self.outputs.iter().map(|o| o.value).chain(self.grads.iter().filter_map(|g| g.value)).collect()
     }
 
     /// Checks SSA order and operand types; `Err` names the first bad instruction.
@@ -367,18 +350,13 @@ impl Function {
             let ok = match inst.op {
                 Op::Binary(BinOp::Complex, a, b) => t(a) == t(b) && t(a).elem == Elem::Real,
                 Op::Binary(_, a, b) => t(a) == t(b),
-                Op::Select(c, a, b) => {
-                    t(a) == t(b) && t(c).elem == Elem::Bool && t(c).shape == t(a).shape
-                }
+                Op::Select(c, a, b) => t(a) == t(b) && t(c).elem == Elem::Bool && t(c).shape == t(a).shape,
                 Op::Broadcast(a, _) => t(a).shape == Shape::Scalar,
                 Op::Reduce(_, a) => t(a).shape != Shape::Scalar,
                 _ => true,
             };
             if !ok {
-                return Err(format!(
-                    "%{i} = {} has operands of mismatched types",
-                    self.fmt_op(&inst.op)
-                ));
+                return Err(format!("%{i} = {} has operands of mismatched types", self.fmt_op(&inst.op)));
             }
         }
         for r in self.roots() {
@@ -390,31 +368,14 @@ impl Function {
     }
 
     fn fmt_op(&self, op: &Op) -> String {
-        let g = |g: GridId| {
-            self.grids
-                .get(g.0 as usize)
-                .map(|g| g.name.clone())
-                .unwrap_or("?".into())
-        };
+        let g = |g: GridId| self.grids.get(g.0 as usize).map(|g| g.name.clone()).unwrap_or("?".into());
         match *op {
             Op::Const(b) => format!("const {:?}", f64::from_bits(b)),
             Op::ConstComplex(r, i) => {
                 format!("const {:?}{:+?}i", f64::from_bits(r), f64::from_bits(i))
             }
-            Op::Param(p) => format!(
-                "param {}",
-                self.params
-                    .get(p as usize)
-                    .map(|p| p.name.as_str())
-                    .unwrap_or("?")
-            ),
-            Op::Input(p) => format!(
-                "input {}",
-                self.inputs
-                    .get(p as usize)
-                    .map(|p| p.name.as_str())
-                    .unwrap_or("?")
-            ),
+            Op::Param(p) => format!("param {}", self.params.get(p as usize).map(|p| p.name.as_str()).unwrap_or("?")),
+            Op::Input(p) => format!("input {}", self.inputs.get(p as usize).map(|p| p.name.as_str()).unwrap_or("?")),
             Op::GridCoord(gr) => format!("grid {}", g(gr)),
             Op::Unary(u, a) => format!("{} %{}", format!("{u:?}").to_lowercase(), a.0),
             Op::Binary(b, x, y) => {
@@ -436,13 +397,7 @@ impl Function {
         };
         match ty.shape {
             Shape::Scalar => e.to_string(),
-            Shape::Grid(g) => format!(
-                "{e}[{}]",
-                self.grids
-                    .get(g.0 as usize)
-                    .map(|g| g.name.as_str())
-                    .unwrap_or("?")
-            ),
+            Shape::Grid(g) => format!("{e}[{}]", self.grids.get(g.0 as usize).map(|g| g.name.as_str()).unwrap_or("?")),
         }
     }
 }
@@ -452,11 +407,7 @@ impl fmt::Display for Function {
         let mut s = String::new();
         let _ = writeln!(s, "scene {} (precision {})", self.name, self.precision);
         for g in &self.grids {
-            let _ = writeln!(
-                s,
-                "  grid {}: {} points, {:?} + i*{:?} [{}]",
-                g.name, g.len, g.start, g.step, g.unit
-            );
+            let _ = writeln!(s, "  grid {}: {} points, {:?} + i*{:?} [{}]", g.name, g.len, g.start, g.step, g.unit);
         }
         for p in &self.params {
             let _ = writeln!(s, "  param {} [{}] scale {:?}", p.name, p.unit, p.scale);
@@ -465,26 +416,14 @@ impl fmt::Display for Function {
             let _ = writeln!(s, "  input {}: {} [{}]", i.name, self.fmt_ty(i.ty), i.unit);
         }
         for (i, inst) in self.insts.iter().enumerate() {
-            let _ = writeln!(
-                s,
-                "  %{i}: {} = {}",
-                self.fmt_ty(inst.ty),
-                self.fmt_op(&inst.op)
-            );
+            let _ = writeln!(s, "  %{i}: {} = {}", self.fmt_ty(inst.ty), self.fmt_op(&inst.op));
         }
         for o in &self.outputs {
             let _ = writeln!(s, "  output {} = %{} [{}]", o.name, o.value.0, o.unit);
         }
         for g in &self.grads {
-            let v = g
-                .value
-                .map(|v| format!("%{}", v.0))
-                .unwrap_or("(not computed)".into());
-            let _ = writeln!(
-                s,
-                "  grad d{}/d{} = {v}",
-                self.outputs[g.output].name, self.params[g.param].name
-            );
+            let v = g.value.map(|v| format!("%{}", v.0)).unwrap_or("(not computed)".into());
+            let _ = writeln!(s, "  grad d{}/d{} = {v}", self.outputs[g.output].name, self.params[g.param].name);
         }
         f.write_str(&s)
     }

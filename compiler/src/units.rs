@@ -34,10 +34,7 @@ impl Ratio {
         }
         let g = gcd(num, den) * den.signum();
         let (n, d) = (num / g, den / g);
-        Some(Ratio {
-            num: i32::try_from(n).ok()?,
-            den: i32::try_from(d).ok()?,
-        })
+        Some(Ratio { num: i32::try_from(n).ok()?, den: i32::try_from(d).ok()? })
     }
     /// The integer `n`.
     pub const fn int(n: i32) -> Ratio {
@@ -46,16 +43,10 @@ impl Ratio {
     /// Zero.
     pub const ZERO: Ratio = Ratio { num: 0, den: 1 };
     fn add(self, o: Ratio) -> Option<Ratio> {
-        Ratio::new(
-            self.num as i64 * o.den as i64 + o.num as i64 * self.den as i64,
-            self.den as i64 * o.den as i64,
-        )
+        Ratio::new(self.num as i64 * o.den as i64 + o.num as i64 * self.den as i64, self.den as i64 * o.den as i64)
     }
     fn mul(self, o: Ratio) -> Option<Ratio> {
-        Ratio::new(
-            self.num as i64 * o.num as i64,
-            self.den as i64 * o.den as i64,
-        )
+        Ratio::new(self.num as i64 * o.num as i64, self.den as i64 * o.den as i64)
     }
     /// The value as a float.
     pub fn to_f64(self) -> f64 {
@@ -65,9 +56,7 @@ impl Ratio {
     pub fn from_f64(x: f64) -> Option<Ratio> {
         (1..=12).find_map(|d| {
             let n = x * d as f64;
-            (n.is_finite() && (n - n.round()).abs() < 1e-9 && n.abs() < 1e6)
-                .then(|| Ratio::new(n.round() as i64, d))
-                .flatten()
+            (n.is_finite() && (n - n.round()).abs() < 1e-9 && n.abs() < 1e6).then(|| Ratio::new(n.round() as i64, d)).flatten()
         })
     }
 }
@@ -96,19 +85,11 @@ impl Dim {
     }
     /// Product of two dimensions (`None` on exponent overflow).
     pub fn mul(self, o: Dim) -> Option<Dim> {
-        Some(Dim([
-            self.0[0].add(o.0[0])?,
-            self.0[1].add(o.0[1])?,
-            self.0[2].add(o.0[2])?,
-        ]))
+        Some(Dim([self.0[0].add(o.0[0])?, self.0[1].add(o.0[1])?, self.0[2].add(o.0[2])?]))
     }
     /// `self^p`.
     pub fn pow(self, p: Ratio) -> Option<Dim> {
-        Some(Dim([
-            self.0[0].mul(p)?,
-            self.0[1].mul(p)?,
-            self.0[2].mul(p)?,
-        ]))
+        Some(Dim([self.0[0].mul(p)?, self.0[1].mul(p)?, self.0[2].mul(p)?]))
     }
     /// `1/self`.
     pub fn inv(self) -> Dim {
@@ -159,51 +140,15 @@ pub const MPC_IN_M: f64 = 3.085_677_581_491_367e22;
 
 /// All unit names the language knows.
 pub const UNITS: &[UnitDef] = &[
-    UnitDef {
-        name: "s",
-        dim: Dim::TIME,
-        scale: 1.0,
-    },
-    UnitDef {
-        name: "ms",
-        dim: Dim::TIME,
-        scale: 1e-3,
-    },
-    UnitDef {
-        name: "Hz",
-        dim: Dim::FREQ,
-        scale: 1.0,
-    },
-    UnitDef {
-        name: "kHz",
-        dim: Dim::FREQ,
-        scale: 1e3,
-    },
-    UnitDef {
-        name: "Msun",
-        dim: Dim::MASS,
-        scale: 1.0,
-    },
-    UnitDef {
-        name: "m",
-        dim: Dim::LENGTH,
-        scale: 1.0,
-    },
-    UnitDef {
-        name: "km",
-        dim: Dim::LENGTH,
-        scale: 1e3,
-    },
-    UnitDef {
-        name: "Mpc",
-        dim: Dim::LENGTH,
-        scale: MPC_IN_M,
-    },
-    UnitDef {
-        name: "rad",
-        dim: Dim::NONE,
-        scale: 1.0,
-    },
+    UnitDef { name: "s", dim: Dim::TIME, scale: 1.0 },
+    UnitDef { name: "ms", dim: Dim::TIME, scale: 1e-3 },
+    UnitDef { name: "Hz", dim: Dim::FREQ, scale: 1.0 },
+    UnitDef { name: "kHz", dim: Dim::FREQ, scale: 1e3 },
+    UnitDef { name: "Msun", dim: Dim::MASS, scale: 1.0 },
+    UnitDef { name: "m", dim: Dim::LENGTH, scale: 1.0 },
+    UnitDef { name: "km", dim: Dim::LENGTH, scale: 1e3 },
+    UnitDef { name: "Mpc", dim: Dim::LENGTH, scale: MPC_IN_M },
+    UnitDef { name: "rad", dim: Dim::NONE, scale: 1.0 },
 ];
 
 /// True if `name` is a unit name (used by the parser for `20 Hz`).
@@ -229,9 +174,6 @@ mod tests {
     fn fractional_powers_print() {
         let d = Dim::TIME.pow(Ratio::new(-7, 6).unwrap()).unwrap();
         assert_eq!(d.to_string(), "s^(-7/6)");
-        assert_eq!(
-            Dim::MASS.mul(Dim::LENGTH.inv()).unwrap().to_string(),
-            "Msun*m^-1"
-        );
+        assert_eq!(Dim::MASS.mul(Dim::LENGTH.inv()).unwrap().to_string(), "Msun*m^-1");
     }
 }

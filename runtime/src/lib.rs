@@ -52,11 +52,7 @@ impl fmt::Display for Error {
             Error::Compile(e) => write!(f, "{}", e.render(false)),
             Error::Scene(s) | Error::Io(s) | Error::Bind(s) => write!(f, "{s}"),
             Error::Codegen(e) => write!(f, "{e}"),
-            Error::UnknownName {
-                kind,
-                name,
-                suggestion,
-            } => {
+            Error::UnknownName { kind, name, suggestion } => {
                 write!(f, "the scene has no {kind} `{name}`")?;
                 if let Some(s) = suggestion {
                     write!(f, "; did you mean `{s}`?")?;
@@ -85,16 +81,13 @@ pub struct Model {
 impl Model {
     /// Compiles source text (`name` is used in diagnostics).
     pub fn from_source(name: &str, text: &str) -> Result<Model, Error> {
-        Ok(Model {
-            program: Program::parse(name, text)?,
-        })
+        Ok(Model { program: Program::parse(name, text)? })
     }
 
     /// Reads and compiles a `.gw` file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Model, Error> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::Io(format!("cannot read {}: {e}", path.display())))?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io(format!("cannot read {}: {e}", path.display())))?;
         Model::from_source(&path.display().to_string(), &text)
     }
 
@@ -122,9 +115,7 @@ pub struct Scene {
 
 impl fmt::Debug for Scene {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("Scene")
-            .field("name", &self.pipeline.optimized.name)
-            .finish()
+        f.debug_struct("Scene").field("name", &self.pipeline.optimized.name).finish()
     }
 }
 
@@ -134,12 +125,7 @@ impl Scene {
         fwd.grads.clear();
         let forward_ir = gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd));
         let forward = codegen::compile(&forward_ir).map_err(Error::Codegen)?;
-        Ok(Scene {
-            pipeline,
-            forward_ir,
-            forward,
-            gradient: OnceCell::new(),
-        })
+        Ok(Scene { pipeline, forward_ir, forward, gradient: OnceCell::new() })
     }
 
     /// The IR that the gradient kernel runs (forward and adjoint).
@@ -159,10 +145,7 @@ impl Scene {
 
     /// The forward+gradient kernel, compiling it on first use.
     pub fn gradient_kernel(&self) -> Result<&Kernel, Error> {
-        self.gradient
-            .get_or_init(|| codegen::compile(&self.pipeline.optimized))
-            .as_ref()
-            .map_err(|e| Error::Codegen(e.clone()))
+        self.gradient.get_or_init(|| codegen::compile(&self.pipeline.optimized)).as_ref().map_err(|e| Error::Codegen(e.clone()))
     }
 
     /// Starts a run with every param at its default and inputs at their defaults.
@@ -250,31 +233,15 @@ impl Outputs {
 
     /// The gradient of `output` with respect to `param`.
     pub fn grad(&self, output: &str, param: &str) -> Result<f64, Error> {
-        self.grads
-            .iter()
-            .find(|(o, p, _)| o == output && p == param)
-            .map(|g| g.2)
-            .ok_or_else(|| {
-                let names: Vec<String> = self
-                    .grads
-                    .iter()
-                    .map(|(o, p, _)| format!("{o}/{p}"))
-                    .collect();
-                unknown(
-                    "gradient",
-                    &format!("{output}/{param}"),
-                    names.iter().map(|s| s.as_str()),
-                )
-            })
+        self.grads.iter().find(|(o, p, _)| o == output && p == param).map(|g| g.2).ok_or_else(|| {
+            let names: Vec<String> = self.grads.iter().map(|(o, p, _)| format!("{o}/{p}")).collect();
+            unknown("gradient", &format!("{output}/{param}"), names.iter().map(|s| s.as_str()))
+        })
     }
 }
 
 fn unknown<'a>(kind: &'static str, name: &str, names: impl Iterator<Item = &'a str>) -> Error {
-    Error::UnknownName {
-        kind,
-        name: name.to_string(),
-        suggestion: did_you_mean(name, names).map(str::to_string),
-    }
+    Error::UnknownName { kind, name: name.to_string(), suggestion: did_you_mean(name, names).map(str::to_string) }
 }
 
 /// Params and data bound to a scene, ready to run. Buffers are allocated on
@@ -298,15 +265,10 @@ impl<'s> Run<'s> {
     /// Sets param `name` (in its declared unit).
     pub fn param(&mut self, name: &str, value: f64) -> Result<&mut Self, Error> {
         let f = self.func();
-        let i = f
-            .params
-            .iter()
-            .position(|p| p.name == name)
-            .ok_or_else(|| unknown("param", name, f.params.iter().map(|p| p.name.as_str())))?;
+        let i =
+            f.params.iter().position(|p| p.name == name).ok_or_else(|| unknown("param", name, f.params.iter().map(|p| p.name.as_str())))?;
         if !value.is_finite() {
-            return Err(Error::Bind(format!(
-                "param `{name}` = {value} is not finite"
-            )));
+            return Err(Error::Bind(format!("param `{name}` = {value} is not finite")));
         }
         self.params[i] = Some(value);
         Ok(self)
@@ -323,23 +285,13 @@ impl<'s> Run<'s> {
         self.bind_input(name, data.to_vec(), true)
     }
 
-    fn bind_input(
-        &mut self,
-        name: &str,
-        data: Vec<C64>,
-        complex: bool,
-    ) -> Result<&mut Self, Error> {
+    fn bind_input(&mut self, name: &str, data: Vec<C64>, complex: bool) -> Result<&mut Self, Error> {
         let f = self.func();
-        let i = f
-            .inputs
-            .iter()
-            .position(|p| p.name == name)
-            .ok_or_else(|| unknown("input", name, f.inputs.iter().map(|p| p.name.as_str())))?;
+        let i =
+            f.inputs.iter().position(|p| p.name == name).ok_or_else(|| unknown("input", name, f.inputs.iter().map(|p| p.name.as_str())))?;
         let info = &f.inputs[i];
         if complex && info.ty.elem == Elem::Real {
-            return Err(Error::Bind(format!(
-                "input `{name}` is real, but complex data was given"
-            )));
+            return Err(Error::Bind(format!("input `{name}` is real, but complex data was given")));
         }
         let want = f.len_of(info.ty.shape);
         if data.len() != want {
@@ -347,19 +299,10 @@ impl<'s> Run<'s> {
                 Shape::Grid(g) => format!(" (grid `{}`)", f.grids[g.0 as usize].name),
                 Shape::Scalar => " (a scalar)".into(),
             };
-            return Err(Error::Bind(format!(
-                "input `{name}` needs {want} values{grid}, but {} were given",
-                data.len()
-            )));
+            return Err(Error::Bind(format!("input `{name}` needs {want} values{grid}, but {} were given", data.len())));
         }
-        if let Some(k) = data
-            .iter()
-            .position(|z| !z.re.is_finite() || !z.im.is_finite())
-        {
-            return Err(Error::Bind(format!(
-                "input `{name}` has a non-finite value ({}) at index {k}",
-                data[k]
-            )));
+        if let Some(k) = data.iter().position(|z| !z.re.is_finite() || !z.im.is_finite()) {
+            return Err(Error::Bind(format!("input `{name}` has a non-finite value ({}) at index {k}", data[k])));
         }
         self.inputs[i] = Some(data.into_iter().map(|z| z * info.scale).collect());
         self.filled_for = None;
@@ -384,40 +327,27 @@ impl<'s> Run<'s> {
         let layout = &kernel.layout;
         let mut params = Vec::with_capacity(func.params.len());
         for (p, v) in func.params.iter().zip(&self.params) {
-            let v = v.ok_or_else(|| {
-                Error::Bind(format!(
-                    "param `{}` has no default; set it (e.g. `--set {}=VALUE`)",
-                    p.name, p.name
-                ))
-            })?;
+            let v = v.ok_or_else(|| Error::Bind(format!("param `{}` has no default; set it (e.g. `--set {}=VALUE`)", p.name, p.name)))?;
             if let Some((lo, hi)) = p.bounds {
                 if !(lo..=hi).contains(&v) {
-                    return Err(Error::Bind(format!(
-                        "param `{}` = {v} is outside its bounds {lo}..{hi}",
-                        p.name
-                    )));
+                    return Err(Error::Bind(format!("param `{}` = {v} is outside its bounds {lo}..{hi}", p.name)));
                 }
             }
             params.push(v * p.scale);
         }
         // (Re)allocate buffers for this kernel's layout.
         let floats = |b: &codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
-        if self.scratch.len() != layout.buffers.len()
-            || self
-                .scratch
-                .iter()
-                .zip(&layout.buffers)
-                .any(|((c, _), b)| *c != b.complex)
-        {
-            self.scratch = layout
-                .buffers
-                .iter()
-                .map(|b| (b.complex, Buffer::new(layout.precision, floats(b))))
-                .collect();
+        if self.scratch.len() != layout.buffers.len() || self.scratch.iter().zip(&layout.buffers).any(|((c, _), b)| *c != b.complex) {
+            self.scratch = layout.buffers.iter().map(|b| (b.complex, Buffer::new(layout.precision, floats(b)))).collect();
         }
         for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
             if let BufferKind::Input(i) = info.kind {
-                let data = self.inputs[i].as_ref().ok_or_else(|| Error::Bind(format!("input `{}` is not bound and has no default; bind it (e.g. `--input {}=FILE.npy`)", func.inputs[i].name, func.inputs[i].name)))?;
+                let data = self.inputs[i].as_ref().ok_or_else(|| {
+                    Error::Bind(format!(
+                        "input `{}` is not bound and has no default; bind it (e.g. `--input {}=FILE.npy`)",
+                        func.inputs[i].name, func.inputs[i].name
+                    ))
+                })?;
                 fill(buf, data, info.complex);
             }
         }
@@ -429,11 +359,7 @@ impl<'s> Run<'s> {
         // scalars has layout.scalar_slots entries.
         unsafe { kernel.call(params.as_ptr(), ptrs.as_ptr(), self.scalars.as_mut_ptr()) };
         let read_scalar = |v: gwml_compiler::ir::Value| -> Value {
-            let s = layout
-                .scalars
-                .iter()
-                .find(|s| s.value == v)
-                .expect("every scalar root has a slot");
+            let s = layout.scalars.iter().find(|s| s.value == v).expect("every scalar root has a slot");
             if s.complex {
                 Value::Complex(C64::new(self.scalars[s.slot], self.scalars[s.slot + 1]))
             } else {
@@ -445,19 +371,11 @@ impl<'s> Run<'s> {
             let v = if func.ty(o.value).shape == Shape::Scalar {
                 read_scalar(o.value)
             } else {
-                let k = layout
-                    .buffers
-                    .iter()
-                    .position(|b| b.kind == BufferKind::Output(oi))
-                    .expect("array outputs have a buffer");
+                let k = layout.buffers.iter().position(|b| b.kind == BufferKind::Output(oi)).expect("array outputs have a buffer");
                 let (complex, buf) = &self.scratch[k];
                 let n = layout.buffers[k].len;
                 if *complex {
-                    Value::ComplexArray(
-                        (0..n)
-                            .map(|i| C64::new(buf.get(2 * i), buf.get(2 * i + 1)))
-                            .collect(),
-                    )
+                    Value::ComplexArray((0..n).map(|i| C64::new(buf.get(2 * i), buf.get(2 * i + 1))).collect())
                 } else {
                     Value::RealArray((0..n).map(|i| buf.get(i)).collect())
                 }
@@ -471,26 +389,15 @@ impl<'s> Run<'s> {
                 continue;
             };
             let p = &func.params[g.param];
-            grads.push((
-                func.outputs[g.output].name.clone(),
-                p.name.clone(),
-                x * p.scale,
-            ));
+            grads.push((func.outputs[g.output].name.clone(), p.name.clone(), x * p.scale));
         }
-        let params_used = func
-            .params
-            .iter()
-            .zip(&self.params)
-            .map(|(p, v)| (p.name.clone(), v.unwrap_or(f64::NAN)))
-            .collect();
+        let params_used = func.params.iter().zip(&self.params).map(|(p, v)| (p.name.clone(), v.unwrap_or(f64::NAN))).collect();
         if let Some((name, _)) = values.iter().find(|(_, v)| !value_finite(v)) {
-            return Err(Error::Bind(format!("output `{name}` is not finite (NaN or infinity) at these params; check params against their bounds and the data")));
+            return Err(Error::Bind(format!(
+                "output `{name}` is not finite (NaN or infinity) at these params; check params against their bounds and the data"
+            )));
         }
-        Ok(Outputs {
-            params: params_used,
-            values,
-            grads,
-        })
+        Ok(Outputs { params: params_used, values, grads })
     }
 }
 

@@ -29,11 +29,7 @@ pub fn adjoint(func: &Function) -> Function {
             continue;
         }
         outputs_done.push(out);
-        let params: Vec<u32> = grads
-            .iter()
-            .filter(|g| g.output == out)
-            .map(|g| g.param as u32)
-            .collect();
+        let params: Vec<u32> = grads.iter().filter(|g| g.output == out).map(|g| g.param as u32).collect();
         // Forward activity.
         let mut active = vec![false; n];
         for (i, inst) in func.insts.iter().enumerate() {
@@ -131,11 +127,7 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
                 UnOp::Tan | UnOp::Tanh => {
                     let zz = b.mul(z, z);
                     let o = one(b, z);
-                    let d = if u == UnOp::Tan {
-                        b.add(o, zz)
-                    } else {
-                        b.sub(o, zz)
-                    };
+                    let d = if u == UnOp::Tan { b.add(o, zz) } else { b.sub(o, zz) };
                     b.mul(g, d)
                 }
                 UnOp::Abs if b.ty(a).elem == Elem::Complex => {
@@ -218,11 +210,7 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
                 vec![(x, gx), (y, gy)]
             }
             BinOp::Min | BinOp::Max => {
-                let cmp = if op == BinOp::Min {
-                    BinOp::Le
-                } else {
-                    BinOp::Ge
-                };
+                let cmp = if op == BinOp::Min { BinOp::Le } else { BinOp::Ge };
                 let c = b.binary(cmp, x, y);
                 let zero = b.zero(b.ty(g));
                 let gx = b.emit(Op::Select(c, g, zero));

@@ -127,11 +127,7 @@ pub enum SceneStmt {
     /// `grid f = frequencies(...)`.
     Grid { name: Ident, def: Expr },
     /// `input d: complex[f]`, optionally `= default` (used when no data is bound).
-    Input {
-        name: Ident,
-        ty: TypeAnn,
-        default: Option<Expr>,
-    },
+    Input { name: Ident, ty: TypeAnn, default: Option<Expr> },
     /// `param mc: Msun = 28 in 5..100`.
     Param(ParamDecl),
     /// `let h = ...`.
@@ -139,11 +135,7 @@ pub enum SceneStmt {
     /// `output loss = ...`.
     Output(LetDecl),
     /// `grad loss wrt [mc, tc]`.
-    Grad {
-        output: Ident,
-        wrt: Vec<Ident>,
-        span: Span,
-    },
+    Grad { output: Ident, wrt: Vec<Ident>, span: Span },
     /// `precision: f32` and other knobs.
     Knob { name: Ident, value: Ident },
 }
@@ -243,10 +235,7 @@ impl BinOp {
 
     /// True for the comparison operators.
     pub fn is_comparison(self) -> bool {
-        matches!(
-            self,
-            BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne
-        )
+        matches!(self, BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne)
     }
 }
 

@@ -22,15 +22,11 @@ pub enum Token {
     CallOpen,
 }
 
-const KEYWORDS: &[&str] = &[
-    "use", "module", "scene", "let", "param", "input", "output", "grad", "wrt", "grid", "in", "if",
-    "else", "real", "complex",
-];
+const KEYWORDS: &[&str] =
+    &["use", "module", "scene", "let", "param", "input", "output", "grad", "wrt", "grid", "in", "if", "else"];
 
-const OPS: &[&str] = &[
-    "::", "..", "==", "!=", "<=", ">=", "->", "+", "-", "*", "/", "^", "<", ">", "=", ":", ",",
-    ";", "(", ")", "[", "]", "{", "}",
-];
+const OPS: &[&str] =
+    &["::", "..", "==", "!=", "<=", ">=", "->", "+", "-", "*", "/", "^", "<", ">", "=", ":", ",", ";", "(", ")", "[", "]", "{", "}"];
 
 impl fmt::Display for Token {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -55,27 +51,15 @@ fn lexer<'a>() -> impl Parser<'a, &'a str, Vec<(Token, SimpleSpan)>, LexErr<'a>>
         .to_slice()
         .then(just('i').then(text::ident().not()).or_not())
         .try_map(|(s, imag): (&str, Option<_>), span| {
-            let v: f64 = s
-                .parse()
-                .map_err(|_| Rich::custom(span, "invalid number"))?;
-            Ok(if imag.is_some() {
-                Token::Imag(v)
-            } else {
-                Token::Num(v)
-            })
+            let v: f64 = s.parse().map_err(|_| Rich::custom(span, "invalid number"))?;
+            Ok(if imag.is_some() { Token::Imag(v) } else { Token::Num(v) })
         });
     let ident = text::ident().map(|s: &str| match KEYWORDS.iter().find(|k| **k == s) {
         Some(k) => Token::Kw(k),
         None => Token::Ident(s.to_string()),
     });
-    let op = choice(
-        OPS.iter()
-            .map(|o| just(*o).to(Token::Op(o)))
-            .collect::<Vec<_>>(),
-    );
-    let comment = just("//")
-        .then(any().and_is(just('\n').not()).repeated())
-        .padded();
+    let op = choice(OPS.iter().map(|o| just(*o).to(Token::Op(o))).collect::<Vec<_>>());
+    let comment = just("//").then(any().and_is(just('\n').not()).repeated()).padded();
     let token = number.or(ident).or(op);
     token
         .map_with(|t, e| (t, e.span()))
@@ -96,10 +80,7 @@ pub fn lex(text: &str, file: FileId) -> (Vec<(Token, Span)>, Vec<Diagnostic>) {
         .into_iter()
         .map(|e| {
             let span = Span::new(file, e.span().into_range());
-            let found = e
-                .found()
-                .map(|c| format!("`{}`", c.escape_debug()))
-                .unwrap_or("end of file".into());
+            let found = e.found().map(|c| format!("`{}`", c.escape_debug())).unwrap_or("end of file".into());
             Diagnostic::error(span, format!("unexpected character {found}"))
                 .with_label("not part of any token")
                 .with_help("remove it; comments start with `//`")
@@ -109,9 +90,7 @@ pub fn lex(text: &str, file: FileId) -> (Vec<(Token, Span)>, Vec<Diagnostic>) {
     for (tok, s) in tokens.unwrap_or_default() {
         let span = Span::new(file, s.into_range());
         let tok = match (&tok, out.last()) {
-            (Token::Op("("), Some((Token::Ident(_), prev))) if prev.end == span.start => {
-                Token::CallOpen
-            }
+            (Token::Op("("), Some((Token::Ident(_), prev))) if prev.end == span.start => Token::CallOpen,
             _ => tok,
         };
         out.push((tok, span));

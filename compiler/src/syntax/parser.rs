@@ -12,96 +12,57 @@ use chumsky::prelude::*;
 
 type Err<'a> = extra::Err<Rich<'a, Token, Span>>;
 
-fn op<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-    s: &'static str,
-) -> impl Parser<'a, I, Token, Err<'a>> + Clone {
+fn op<'a, I: ValueInput<'a, Token = Token, Span = Span>>(s: &'static str) -> impl Parser<'a, I, Token, Err<'a>> + Clone {
     just(Token::Op(s))
 }
 
-fn kw<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-    s: &'static str,
-) -> impl Parser<'a, I, Token, Err<'a>> + Clone {
+fn kw<'a, I: ValueInput<'a, Token = Token, Span = Span>>(s: &'static str) -> impl Parser<'a, I, Token, Err<'a>> + Clone {
     just(Token::Kw(s))
 }
 
-fn ident<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-) -> impl Parser<'a, I, Ident, Err<'a>> + Clone {
-    select! { Token::Ident(s) => s }
-        .map_with(|s, e| Spanned::new(s, e.span()))
-        .labelled("name")
+fn ident<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, Ident, Err<'a>> + Clone {
+    select! { Token::Ident(s) => s }.map_with(|s, e| Spanned::new(s, e.span())).labelled("name")
 }
 
-fn unit_expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-) -> impl Parser<'a, I, Spanned<UnitExpr>, Err<'a>> + Clone {
+fn unit_expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, Spanned<UnitExpr>, Err<'a>> + Clone {
     let int = select! { Token::Num(n) if n.fract() == 0.0 && n.abs() < 1e6 => n as i32 };
-    let signed = op("-")
-        .or_not()
-        .then(int)
-        .map(|(neg, n)| if neg.is_some() { -n } else { n });
-    let power = signed.clone().map(|n| (n, 1)).or(signed
-        .then_ignore(op("/"))
-        .then(int)
-        .delimited_by(op("("), op(")")));
-    let name = ident()
-        .then_ignore(op(":").not().rewind())
-        .map(UnitExpr::Name)
-        .or(select! { Token::Num(n) if n == 1.0 => UnitExpr::One });
-    let factor = name
-        .then(op("^").ignore_then(power).or_not())
-        .map(|(u, p)| match p {
-            Some((n, d)) => UnitExpr::Pow(Box::new(u), n, d),
-            None => u,
-        });
+    let signed = op("-").or_not().then(int).map(|(neg, n)| if neg.is_some() { -n } else { n });
+    let power = signed.clone().map(|n| (n, 1)).or(signed.then_ignore(op("/")).then(int).delimited_by(op("("), op(")")));
+    let name = ident().then_ignore(op(":").not().rewind()).map(UnitExpr::Name).or(select! { Token::Num(n) if n == 1.0 => UnitExpr::One });
+    let factor = name.then(op("^").ignore_then(power).or_not()).map(|(u, p)| match p {
+        Some((n, d)) => UnitExpr::Pow(Box::new(u), n, d),
+        None => u,
+    });
     factor
         .clone()
-        .foldl(
-            op("*")
-                .to(true)
-                .or(op("/").to(false))
-                .then(factor)
-                .repeated(),
-            |a, (mul, b)| {
-                if mul {
-                    UnitExpr::Mul(Box::new(a), Box::new(b))
-                } else {
-                    UnitExpr::Div(Box::new(a), Box::new(b))
-                }
-            },
-        )
+        .foldl(op("*").to(true).or(op("/").to(false)).then(factor).repeated(), |a, (mul, b)| {
+            if mul {
+                UnitExpr::Mul(Box::new(a), Box::new(b))
+            } else {
+                UnitExpr::Div(Box::new(a), Box::new(b))
+            }
+        })
         .map_with(|u, e| Spanned::new(u, e.span()))
         .labelled("unit")
 }
 
-fn type_ann<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-) -> impl Parser<'a, I, TypeAnn, Err<'a>> + Clone {
-    let elem = kw("real")
-        .to(ElemAnn::Real)
-        .or(kw("complex").to(ElemAnn::Complex))
-        .map_with(|e, x| Spanned::new(e, x.span()));
+fn type_ann<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, TypeAnn, Err<'a>> + Clone {
+    let elem = select! { Token::Ident(s) if s == "real" => ElemAnn::Real, Token::Ident(s) if s == "complex" => ElemAnn::Complex }.map_with(|e, x| Spanned::new(e, x.span()));
     let grid = ident().delimited_by(op("["), op("]"));
     elem.or_not()
         .then(grid.or_not())
         .then(unit_expr().or_not())
         .try_map(|((elem, grid), unit), span| {
             if elem.is_none() && grid.is_none() && unit.is_none() {
-                Err(Rich::custom(
-                    span,
-                    "expected a type: `real`, `complex`, a grid `[f]` or a unit",
-                ))
+                Err(Rich::custom(span, "expected a type: `real`, `complex`, a grid `[f]` or a unit"))
             } else {
-                Ok(TypeAnn {
-                    elem,
-                    grid,
-                    unit,
-                    span,
-                })
+                Ok(TypeAnn { elem, grid, unit, span })
             }
         })
         .labelled("type")
 }
 
-fn expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-) -> impl Parser<'a, I, Expr, Err<'a>> + Clone {
+fn expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, Expr, Err<'a>> + Clone {
     recursive(|expr| {
         let unit_suffix = select! { Token::Ident(s) if is_unit_name(&s) => s }
             .map_with(|s, e| Spanned::new(UnitExpr::Name(Spanned::new(s, e.span())), e.span()))
@@ -110,19 +71,9 @@ fn expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
             .then(unit_suffix.or_not())
             .map(|(n, u)| ExprKind::Number(n, u))
             .or(select! { Token::Imag(n) => ExprKind::Imaginary(n) });
-        let arg = ident()
-            .then_ignore(op(":"))
-            .or_not()
-            .then(expr.clone())
-            .map(|(name, value)| Arg { name, value });
-        let args = arg
-            .separated_by(op(","))
-            .allow_trailing()
-            .collect::<Vec<_>>()
-            .delimited_by(just(Token::CallOpen), op(")"));
-        let call = ident()
-            .then(args)
-            .map(|(callee, args)| ExprKind::Call { callee, args });
+        let arg = ident().then_ignore(op(":")).or_not().then(expr.clone()).map(|(name, value)| Arg { name, value });
+        let args = arg.separated_by(op(",")).allow_trailing().collect::<Vec<_>>().delimited_by(just(Token::CallOpen), op(")"));
+        let call = ident().then(args).map(|(callee, args)| ExprKind::Call { callee, args });
         let name = ident().map(|i| ExprKind::Name(i.node));
         let block = expr.clone().delimited_by(op("{"), op("}"));
         let if_ = kw("if")
@@ -140,10 +91,7 @@ fn expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
             .recover_with(via_parser(nested_delimiters(
                 Token::Op("("),
                 Token::Op(")"),
-                [
-                    (Token::Op("["), Token::Op("]")),
-                    (Token::Op("{"), Token::Op("}")),
-                ],
+                [(Token::Op("["), Token::Op("]")), (Token::Op("{"), Token::Op("}"))],
                 |span| Spanned::new(ExprKind::Error, span),
             )))
             .labelled("expression");
@@ -154,9 +102,7 @@ fn expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
         };
         atom.pratt((
             infix(right(6), op("^"), bin(BinOp::Pow)),
-            prefix(5, op("-"), |_, a: Expr, e| {
-                Spanned::new(ExprKind::Neg(Box::new(a)), e.span())
-            }),
+            prefix(5, op("-"), |_, a: Expr, e| Spanned::new(ExprKind::Neg(Box::new(a)), e.span())),
             infix(left(4), op("*"), bin(BinOp::Mul)),
             infix(left(4), op("/"), bin(BinOp::Div)),
             infix(left(3), op("+"), bin(BinOp::Add)),
@@ -172,9 +118,7 @@ fn expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
     })
 }
 
-fn let_decl<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-    keyword: &'static str,
-) -> impl Parser<'a, I, LetDecl, Err<'a>> + Clone {
+fn let_decl<'a, I: ValueInput<'a, Token = Token, Span = Span>>(keyword: &'static str) -> impl Parser<'a, I, LetDecl, Err<'a>> + Clone {
     kw(keyword)
         .ignore_then(ident())
         .then(op(":").ignore_then(type_ann()).or_not())
@@ -183,28 +127,17 @@ fn let_decl<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
         .map(|((name, ty), value)| LetDecl { name, ty, value })
 }
 
-const STMT_STARTS: &[&str] = &[
-    "grid", "input", "param", "let", "output", "grad", "use", "module", "scene",
-];
+const STMT_STARTS: &[&str] = &["grid", "input", "param", "let", "output", "grad", "use", "module", "scene"];
 
 /// Skips a broken statement: at least one token, then up to the next
 /// statement keyword or closing brace.
-fn skip_stmt<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-) -> impl Parser<'a, I, (), Err<'a>> + Clone {
+fn skip_stmt<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, (), Err<'a>> + Clone {
     let stop = choice(STMT_STARTS.iter().map(|k| kw(k)).collect::<Vec<_>>()).or(op("}"));
-    any()
-        .and_is(op("}").not())
-        .then(any().and_is(stop.not()).repeated())
-        .ignored()
+    any().and_is(op("}").not()).then(any().and_is(stop.not()).repeated()).ignored()
 }
 
-fn scene_stmt<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-) -> impl Parser<'a, I, Option<SceneStmt>, Err<'a>> + Clone {
-    let grid = kw("grid")
-        .ignore_then(ident())
-        .then_ignore(op("="))
-        .then(expr())
-        .map(|(name, def)| SceneStmt::Grid { name, def });
+fn scene_stmt<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, Option<SceneStmt>, Err<'a>> + Clone {
+    let grid = kw("grid").ignore_then(ident()).then_ignore(op("=")).then(expr()).map(|(name, def)| SceneStmt::Grid { name, def });
     let input = kw("input")
         .ignore_then(ident())
         .then_ignore(op(":"))
@@ -215,80 +148,28 @@ fn scene_stmt<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
         .ignore_then(ident())
         .then(op(":").ignore_then(type_ann()).or_not())
         .then(op("=").ignore_then(expr()).or_not())
-        .then(
-            kw("in")
-                .ignore_then(expr())
-                .then_ignore(op(".."))
-                .then(expr())
-                .or_not(),
-        )
-        .map_with(|(((name, ty), default), bounds), e| {
-            SceneStmt::Param(ParamDecl {
-                name,
-                ty,
-                default,
-                bounds,
-                span: e.span(),
-            })
-        });
-    let wrt = ident()
-        .separated_by(op(","))
-        .allow_trailing()
-        .collect::<Vec<_>>()
-        .delimited_by(op("["), op("]"))
-        .or(ident().map(|i| vec![i]));
-    let grad = kw("grad")
-        .ignore_then(ident())
-        .then_ignore(kw("wrt"))
-        .then(wrt)
-        .map_with(|(output, wrt), e| SceneStmt::Grad {
-            output,
-            wrt,
-            span: e.span(),
-        });
-    let knob = ident()
-        .then_ignore(op(":"))
-        .then(ident())
-        .map(|(name, value)| SceneStmt::Knob { name, value });
-    choice((
-        grid,
-        input,
-        param,
-        let_decl("let").map(SceneStmt::Let),
-        let_decl("output").map(SceneStmt::Output),
-        grad,
-        knob,
-    ))
-    .map(Some)
-    .then_ignore(op(";").or_not())
-    .recover_with(via_parser(skip_stmt().to(None)))
-    .labelled("scene statement")
+        .then(kw("in").ignore_then(expr()).then_ignore(op("..")).then(expr()).or_not())
+        .map_with(|(((name, ty), default), bounds), e| SceneStmt::Param(ParamDecl { name, ty, default, bounds, span: e.span() }));
+    let wrt =
+        ident().separated_by(op(",")).allow_trailing().collect::<Vec<_>>().delimited_by(op("["), op("]")).or(ident().map(|i| vec![i]));
+    let grad = kw("grad").ignore_then(ident()).then_ignore(kw("wrt")).then(wrt).map_with(|(output, wrt), e| SceneStmt::Grad {
+        output,
+        wrt,
+        span: e.span(),
+    });
+    let knob = ident().then_ignore(op(":")).then(ident()).map(|(name, value)| SceneStmt::Knob { name, value });
+    choice((grid, input, param, let_decl("let").map(SceneStmt::Let), let_decl("output").map(SceneStmt::Output), grad, knob))
+        .map(Some)
+        .then_ignore(op(";").or_not())
+        .recover_with(via_parser(skip_stmt().to(None)))
+        .labelled("scene statement")
 }
 
-fn item<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
-) -> impl Parser<'a, I, Option<Item>, Err<'a>> + Clone {
+fn item<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, Option<Item>, Err<'a>> + Clone {
     let use_ = kw("use")
-        .ignore_then(
-            ident()
-                .then_ignore(op("::"))
-                .repeated()
-                .at_least(1)
-                .collect::<Vec<_>>(),
-        )
-        .then(
-            ident().map(|i| vec![i]).or(ident()
-                .separated_by(op(","))
-                .allow_trailing()
-                .collect()
-                .delimited_by(op("{"), op("}"))),
-        )
-        .map_with(|(path, names), e| {
-            Item::Use(UseDecl {
-                path,
-                names,
-                span: e.span(),
-            })
-        });
+        .ignore_then(ident().then_ignore(op("::")).repeated().at_least(1).collect::<Vec<_>>())
+        .then(ident().map(|i| vec![i]).or(ident().separated_by(op(",")).allow_trailing().collect().delimited_by(op("{"), op("}"))))
+        .map_with(|(path, names), e| Item::Use(UseDecl { path, names, span: e.span() }));
     let module_arg = ident()
         .then(op(":").ignore_then(type_ann()).or_not())
         .then(op("=").ignore_then(expr()).or_not())
@@ -296,11 +177,7 @@ fn item<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
     let module = kw("module")
         .ignore_then(ident())
         .then(
-            module_arg
-                .separated_by(op(","))
-                .allow_trailing()
-                .collect::<Vec<_>>()
-                .delimited_by(just(Token::CallOpen).or(op("(")), op(")")),
+            module_arg.separated_by(op(",")).allow_trailing().collect::<Vec<_>>().delimited_by(just(Token::CallOpen).or(op("(")), op(")")),
         )
         .then(
             let_decl("let")
@@ -311,34 +188,12 @@ fn item<'a, I: ValueInput<'a, Token = Token, Span = Span>>(
                 .then_ignore(op(";").or_not())
                 .delimited_by(op("{"), op("}")),
         )
-        .map_with(|((name, args), (lets, result)), e| {
-            Item::Module(ModuleDef {
-                name,
-                args,
-                lets,
-                result,
-                span: e.span(),
-            })
-        });
+        .map_with(|((name, args), (lets, result)), e| Item::Module(ModuleDef { name, args, lets, result, span: e.span() }));
     let scene = kw("scene")
         .ignore_then(ident())
-        .then(
-            scene_stmt()
-                .repeated()
-                .collect::<Vec<_>>()
-                .delimited_by(op("{"), op("}")),
-        )
-        .map_with(|(name, stmts), e| {
-            Item::Scene(SceneDef {
-                name,
-                stmts: stmts.into_iter().flatten().collect(),
-                span: e.span(),
-            })
-        });
-    choice((use_, module, scene))
-        .map(Some)
-        .recover_with(via_parser(skip_stmt().to(None)))
-        .labelled("item (`use`, `module` or `scene`)")
+        .then(scene_stmt().repeated().collect::<Vec<_>>().delimited_by(op("{"), op("}")))
+        .map_with(|(name, stmts), e| Item::Scene(SceneDef { name, stmts: stmts.into_iter().flatten().collect(), span: e.span() }));
+    choice((use_, module, scene)).map(Some).recover_with(via_parser(skip_stmt().to(None))).labelled("item (`use`, `module` or `scene`)")
 }
 
 /// Parses the text of file `file`. Always returns a tree (possibly partial)
@@ -347,21 +202,11 @@ pub fn parse(text: &str, file: FileId) -> (SourceFileAst, Vec<Diagnostic>) {
     let (tokens, mut diags) = lex(text, file);
     let eoi = Span::new(file, text.len()..text.len());
     let input = tokens.as_slice().map(eoi, |(t, s)| (t, s));
-    let (items, errs) = item()
-        .repeated()
-        .collect::<Vec<_>>()
-        .then_ignore(end())
-        .parse(input)
-        .into_output_errors();
+    let (items, errs) = item().repeated().collect::<Vec<_>>().then_ignore(end()).parse(input).into_output_errors();
     for e in errs {
         diags.push(syntax_diagnostic(&e));
     }
-    (
-        SourceFileAst {
-            items: items.unwrap_or_default().into_iter().flatten().collect(),
-        },
-        diags,
-    )
+    (SourceFileAst { items: items.unwrap_or_default().into_iter().flatten().collect() }, diags)
 }
 
 fn syntax_diagnostic(e: &Rich<'_, Token, Span>) -> Diagnostic {
@@ -370,8 +215,9 @@ fn syntax_diagnostic(e: &Rich<'_, Token, Span>) -> Diagnostic {
         None => "end of file".to_string(),
     };
     match e.reason() {
-        chumsky::error::RichReason::Custom(msg) => Diagnostic::error(*e.span(), msg.clone())
-            .with_help("see the language reference in README.md"),
+        chumsky::error::RichReason::Custom(msg) => {
+            Diagnostic::error(*e.span(), msg.clone()).with_help("see the language reference in README.md")
+        }
         _ => {
             let mut expected: Vec<String> = e
                 .expected()
@@ -384,8 +230,7 @@ fn syntax_diagnostic(e: &Rich<'_, Token, Span>) -> Diagnostic {
                 .collect();
             expected.sort();
             expected.dedup();
-            let mut d = Diagnostic::error(*e.span(), format!("syntax error: unexpected {found}"))
-                .with_label(format!("unexpected {found}"));
+            let mut d = Diagnostic::error(*e.span(), format!("syntax error: unexpected {found}")).with_label(format!("unexpected {found}"));
             if !expected.is_empty() {
                 d = d.with_help(format!("expected {}", expected.join(", ")));
             }

@@ -31,13 +31,7 @@ pub fn print_ast(ast: &SourceFileAst) -> String {
                     .collect();
                 let _ = writeln!(out, "module {}({})", m.name.node, args.join(", "));
                 for l in &m.lets {
-                    let _ = writeln!(
-                        out,
-                        "  let {}{} = {}",
-                        l.name.node,
-                        opt_ty(&l.ty),
-                        expr(&l.value)
-                    );
+                    let _ = writeln!(out, "  let {}{} = {}", l.name.node, opt_ty(&l.ty), expr(&l.value));
                 }
                 let _ = writeln!(out, "  result {}", expr(&m.result));
             }
@@ -48,15 +42,8 @@ pub fn print_ast(ast: &SourceFileAst) -> String {
                         SceneStmt::Grid { name, def } => {
                             format!("grid {} = {}", name.node, expr(def))
                         }
-                        SceneStmt::Input {
-                            name,
-                            ty: t,
-                            default,
-                        } => {
-                            let d = default
-                                .as_ref()
-                                .map(|d| format!(" = {}", expr(d)))
-                                .unwrap_or_default();
+                        SceneStmt::Input { name, ty: t, default } => {
+                            let d = default.as_ref().map(|d| format!(" = {}", expr(d))).unwrap_or_default();
                             format!("input {}: {}{d}", name.node, ty(t))
                         }
                         SceneStmt::Param(p) => {
@@ -72,12 +59,7 @@ pub fn print_ast(ast: &SourceFileAst) -> String {
                         SceneStmt::Let(l) => {
                             format!("let {}{} = {}", l.name.node, opt_ty(&l.ty), expr(&l.value))
                         }
-                        SceneStmt::Output(l) => format!(
-                            "output {}{} = {}",
-                            l.name.node,
-                            opt_ty(&l.ty),
-                            expr(&l.value)
-                        ),
+                        SceneStmt::Output(l) => format!("output {}{} = {}", l.name.node, opt_ty(&l.ty), expr(&l.value)),
                         SceneStmt::Grad { output, wrt, .. } => {
                             let w: Vec<_> = wrt.iter().map(|w| w.node.as_str()).collect();
                             format!("grad {} wrt [{}]", output.node, w.join(", "))
@@ -93,9 +75,7 @@ pub fn print_ast(ast: &SourceFileAst) -> String {
 }
 
 fn opt_ty(t: &Option<TypeAnn>) -> String {
-    t.as_ref()
-        .map(|t| format!(": {}", ty(t)))
-        .unwrap_or_default()
+    t.as_ref().map(|t| format!(": {}", ty(t))).unwrap_or_default()
 }
 
 fn ty(t: &TypeAnn) -> String {

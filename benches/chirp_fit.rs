@@ -1,0 +1,99 @@
+//! Benchmark of `examples/chirp_fit.gw` (8,033 frequency bins): the JIT's
+//! forward and fused forward+gradient calls against the same computation
+//! hand-written in Rust, and the heap the gradient call allocates.
+//!
+//!     cargo bench --bench chirp_fit
+//!
+//! Prints medians over many repetitions (the machine is noisy: compare ratios).
+
+#[path = "../tests/common/chirp_reference.rs"]
+mod reference;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::hint::black_box;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+/// Counts live heap bytes and their peak.
+struct Counting;
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        let live = LIVE.fetch_add(l.size(), Ordering::Relaxed) + l.size();
+        PEAK.fetch_max(live, Ordering::Relaxed);
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        LIVE.fetch_sub(l.size(), Ordering::Relaxed);
+        unsafe { System.dealloc(p, l) }
+    }
+}
+
+#[global_allocator]
+static ALLOC: Counting = Counting;
+
+fn median_us(reps: usize, mut f: impl FnMut()) -> f64 {
+    for _ in 0..reps / 10 + 1 {
+        f();
+    }
+    let mut t: Vec<f64> = (0..reps)
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[reps / 2]
+}
+
+fn main() {
+    let reps = 400;
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/chirp_fit.gw");
+    let model = gwml::compile_file(path).expect("example compiles");
+    let scene = model.scene(None).expect("scene compiles");
+    let mut run = scene.bind();
+    run.param("mc", 29.0).unwrap().param("tc", 0.001).unwrap().param("phic", 0.2).unwrap();
+    run.value_and_grad().unwrap();
+    let data = reference::default_data();
+
+    let jit_fwd = median_us(reps, || {
+        black_box(run.forward().unwrap());
+    });
+    let jit_grad = median_us(reps, || {
+        black_box(run.value_and_grad().unwrap());
+    });
+    let rust_fwd = median_us(reps, || {
+        black_box(reference::loss(black_box(&data), 29.0, 0.001, 0.2));
+    });
+    let rust_grad = median_us(reps, || {
+        black_box(reference::loss_and_grad(black_box(&data), 29.0, 0.001, 0.2));
+    });
+
+    // Heap during one forward+gradient call, above what was live before it.
+    let before = LIVE.load(Ordering::Relaxed);
+    PEAK.store(before, Ordering::Relaxed);
+    let out = run.value_and_grad().unwrap();
+    let peak_extra = PEAK.load(Ordering::Relaxed) - before;
+    drop(out);
+
+    let (loss, grad) = reference::loss_and_grad(&data, 29.0, 0.001, 0.2);
+    let out = run.value_and_grad().unwrap();
+    let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+    println!("chirp_fit, {} bins, f64, one thread, median of {reps}", reference::N);
+    println!(
+        "  agreement with hand-written Rust: loss {:.1e}, dL/dmc {:.1e}",
+        rel(out.scalar("loss").unwrap(), loss),
+        rel(out.grad("loss", "mc").unwrap(), grad[0])
+    );
+    println!("  {:<34} {:>9.1} µs", "gwml forward", jit_fwd);
+    println!("  {:<34} {:>9.1} µs", "gwml forward+gradient (fused)", jit_grad);
+    println!("  {:<34} {:>9.1} µs", "hand-written Rust forward", rust_fwd);
+    println!("  {:<34} {:>9.1} µs", "hand-written Rust forward+gradient", rust_grad);
+    println!("  forward+gradient / forward (gwml):  {:.2}x  (target <= 2.5x)", jit_grad / jit_fwd);
+    println!("  gwml forward / Rust forward:        {:.2}x  (target <= 1.5x)", jit_fwd / rust_fwd);
+    println!("  gwml fwd+grad / Rust fwd+grad:      {:.2}x", jit_grad / rust_grad);
+    println!("  heap allocated during one forward+gradient call: {peak_extra} bytes (one bin of data is 16 bytes; {} bins)", reference::N);
+}
