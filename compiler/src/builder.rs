@@ -44,6 +44,7 @@ impl Builder {
             Op::Param(_) => Ty::REAL,
             Op::Input(i) => self.func.inputs[i as usize].ty,
             Op::GridCoord(g) => Ty { elem: Elem::Real, shape: Shape::Grid(g) },
+            Op::Table(t) => Ty { elem: Elem::Real, shape: Shape::Grid(self.func.tables[t as usize].grid) },
             Op::Unary(u, a) => match u {
                 UnOp::Abs | UnOp::Re | UnOp::Im | UnOp::Abs2 | UnOp::Sign => t(a).with_elem(Elem::Real),
                 UnOp::Cis | UnOp::ToComplex => t(a).with_elem(Elem::Complex),
@@ -184,10 +185,7 @@ impl Builder {
             Op::PowConst(a, c) if f64::from_bits(c) == 1.0 => Some(a),
             Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => Some(self.constant(C64::new(1.0, 0.0), ty)),
             Op::Select(_, a, b) if a == b => Some(a),
-            Op::Select(c, a, b) => match self.const_of(c) {
-                Some(k) => Some(if k.re != 0.0 { a } else { b }),
-                None => None,
-            },
+            Op::Select(c, a, b) => self.const_of(c).map(|k| if k.re != 0.0 { a } else { b }),
             _ => None,
         }
     }

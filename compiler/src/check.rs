@@ -632,9 +632,9 @@ impl<'a> Checker<'a> {
                     let (da, sa) = go(c, a)?;
                     let (db, sb) = go(c, b)?;
                     if matches!(u, UnitExpr::Mul(..)) {
-                        Some((da.mul(db)?, sa * sb))
+                        Some((da.times(db)?, sa * sb))
                     } else {
-                        Some((da.mul(db.inv())?, sa / sb))
+                        Some((da.times(db.inv())?, sa / sb))
                     }
                 }
                 UnitExpr::Pow(a, n, d) => {
@@ -858,7 +858,7 @@ impl<'a> Checker<'a> {
                 Some(Tv { v, dim: lt.dim })
             }
             BinOp::Mul | BinOp::Div => {
-                let dim = if op == BinOp::Mul { lt.dim.mul(rt.dim) } else { lt.dim.mul(rt.dim.inv()) };
+                let dim = if op == BinOp::Mul { lt.dim.times(rt.dim) } else { lt.dim.times(rt.dim.inv()) };
                 let Some(dim) = dim else {
                     self.error(Diagnostic::error(at, "unit exponent overflow").with_help("simplify the units of this expression"));
                     return None;
@@ -1085,7 +1085,7 @@ impl<'a> Checker<'a> {
             }
             "abs" => un(b, UnOp::Abs, a.0, a.0.dim),
             "abs2" => {
-                let d = a.0.dim.mul(a.0.dim)?;
+                let d = a.0.dim.times(a.0.dim)?;
                 if elem == Elem::Complex {
                     un(b, UnOp::Abs2, a.0, d)
                 } else {

@@ -40,6 +40,8 @@ pub enum BufferKind {
     Scratch,
     /// Array output number `i` (index into [`Function::outputs`]).
     Output(usize),
+    /// Precomputed table number `i` (index into [`Function::tables`], read only).
+    Table(usize),
 }
 
 /// One buffer the kernel reads or writes.
@@ -145,7 +147,7 @@ struct Schedule {
 }
 
 fn on_demand(op: &Op) -> bool {
-    matches!(op, Op::Broadcast(..) | Op::GridCoord(_) | Op::Input(_))
+    matches!(op, Op::Broadcast(..) | Op::GridCoord(_) | Op::Input(_) | Op::Table(_))
 }
 
 fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
@@ -308,6 +310,9 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
             len: func.len_of(input.ty.shape),
             complex: input.ty.elem == Elem::Complex,
         });
+    }
+    for (k, t) in func.tables.iter().enumerate() {
+        layout.buffers.push(BufferInfo { kind: BufferKind::Table(k), len: t.data.len(), complex: false });
     }
     let sched = schedule(func, &mut layout);
     layout.loops = sched.loops.len();
@@ -643,6 +648,10 @@ impl<'a> Gen<'a> {
                 Cv::real(self.narrow(x))
             }
             Op::Input(k) => self.load_elem(k as usize, lc.index, inst.ty.elem == Elem::Complex),
+            Op::Table(t) => {
+                let buf = self.layout.buffers.iter().position(|b| b.kind == BufferKind::Table(t as usize)).expect("tables have buffers");
+                self.load_elem(buf, lc.index, false)
+            }
             // Stored by an earlier loop: reload instead of recomputing.
             _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < lc.epoch => {
                 let buf = self.sched.stored[&i];

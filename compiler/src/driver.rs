@@ -186,9 +186,12 @@ pub fn run_passes(checked: Function) -> ScenePipeline {
     let adjoint = passes::adjoint(&pruned);
     times.push(("adjoint", t.elapsed()));
     let t = Instant::now();
-    let optimized = passes::simplify(&adjoint);
+    let simplified = passes::simplify(&adjoint);
     times.push(("simplify", t.elapsed()));
-    for (stage, f) in [("prune", &pruned), ("adjoint", &adjoint), ("simplify", &optimized)] {
+    let t = Instant::now();
+    let optimized = passes::specialise(&simplified);
+    times.push(("specialise", t.elapsed()));
+    for (stage, f) in [("prune", &pruned), ("adjoint", &adjoint), ("simplify", &simplified), ("specialise", &optimized)] {
         if let Err(e) = f.verify() {
             // A verifier failure is a compiler bug; surface it loudly in debug builds.
             debug_assert!(false, "IR invalid after {stage}: {e}");

@@ -51,6 +51,7 @@ pub fn interpret(func: &Function, params: &[f64], inputs: &[Tensor]) -> InterpRe
             Op::ConstComplex(r, i) => vec![C64::new(f64::from_bits(r), f64::from_bits(i))],
             Op::Param(p) => vec![C64::new(params[p as usize], 0.0)],
             Op::Input(i) => inputs[i as usize].clone(),
+            Op::Table(t) => func.tables[t as usize].data.iter().map(|x| C64::new(*x, 0.0)).collect(),
             Op::GridCoord(g) => {
                 let gr = &func.grids[g.0 as usize];
                 (0..gr.len).map(|i| C64::new(gr.start + i as f64 * gr.step, 0.0)).collect()

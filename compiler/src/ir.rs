@@ -157,6 +157,9 @@ pub enum Op {
     Input(u32),
     /// The coordinates of a grid: `start + i * step`.
     GridCoord(GridId),
+    /// Precomputed real array number n of [`Function::tables`]: a value
+    /// that depends only on a grid, folded once per scene.
+    Table(u32),
     /// Unary operation.
     Unary(UnOp, Value),
     /// Binary operation.
@@ -180,7 +183,7 @@ impl Op {
     /// The operands, in order.
     pub fn operands(&self) -> Vec<Value> {
         match *self {
-            Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) => vec![],
+            Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) | Op::Table(_) => vec![],
             Op::Unary(_, a) | Op::PowConst(a, _) | Op::Broadcast(a, _) | Op::Reduce(_, a) => {
                 vec![a]
             }
@@ -276,6 +279,15 @@ pub struct InputInfo {
     pub default: Option<Vec<num_complex::Complex64>>,
 }
 
+/// A real array over a grid computed at compile time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table {
+    /// The grid it lives on.
+    pub grid: GridId,
+    /// One value per grid point.
+    pub data: Vec<f64>,
+}
+
 /// A named result of the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Output {
@@ -315,6 +327,8 @@ pub struct Function {
     pub outputs: Vec<Output>,
     /// Requested gradients.
     pub grads: Vec<GradOutput>,
+    /// Grid-only arrays folded at compile time (see `passes::specialise`).
+    pub tables: Vec<Table>,
     /// Working precision.
     pub precision: Precision,
 }
@@ -377,6 +391,7 @@ impl Function {
             Op::Param(p) => format!("param {}", self.params.get(p as usize).map(|p| p.name.as_str()).unwrap_or("?")),
             Op::Input(p) => format!("input {}", self.inputs.get(p as usize).map(|p| p.name.as_str()).unwrap_or("?")),
             Op::GridCoord(gr) => format!("grid {}", g(gr)),
+            Op::Table(t) => format!("table {t}"),
             Op::Unary(u, a) => format!("{} %{}", format!("{u:?}").to_lowercase(), a.0),
             Op::Binary(b, x, y) => {
                 format!("{} %{}, %{}", format!("{b:?}").to_lowercase(), x.0, y.0)
@@ -414,6 +429,10 @@ impl fmt::Display for Function {
         }
         for i in &self.inputs {
             let _ = writeln!(s, "  input {}: {} [{}]", i.name, self.fmt_ty(i.ty), i.unit);
+        }
+        for (k, t) in self.tables.iter().enumerate() {
+            let (lo, hi) = t.data.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+            let _ = writeln!(s, "  table {k}: real[{}], {} values in [{lo:e}, {hi:e}]", self.grids[t.grid.0 as usize].name, t.data.len());
         }
         for (i, inst) in self.insts.iter().enumerate() {
             let _ = writeln!(s, "  %{i}: {} = {}", self.fmt_ty(inst.ty), self.fmt_op(&inst.op));

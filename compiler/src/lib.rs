@@ -1,6 +1,9 @@
 //! gwml compiler: `.gw` source → checked IR → symbolic adjoint → optimised
 //! IR → Cranelift JIT kernels. See `ARCHITECTURE.md` for the stage map.
 
+// Checks such as `!(step > 0.0)` are written to reject NaN as well.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod builder;
 pub mod check;
 pub mod diagnostics;

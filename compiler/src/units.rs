@@ -84,7 +84,7 @@ impl Dim {
         self == Dim::NONE
     }
     /// Product of two dimensions (`None` on exponent overflow).
-    pub fn mul(self, o: Dim) -> Option<Dim> {
+    pub fn times(self, o: Dim) -> Option<Dim> {
         Some(Dim([self.0[0].add(o.0[0])?, self.0[1].add(o.0[1])?, self.0[2].add(o.0[2])?]))
     }
     /// `self^p`.
@@ -167,13 +167,13 @@ mod tests {
 
     #[test]
     fn hz_times_seconds_is_dimensionless() {
-        assert!(Dim::FREQ.mul(Dim::TIME).unwrap().is_none());
+        assert!(Dim::FREQ.times(Dim::TIME).unwrap().is_none());
     }
 
     #[test]
     fn fractional_powers_print() {
         let d = Dim::TIME.pow(Ratio::new(-7, 6).unwrap()).unwrap();
         assert_eq!(d.to_string(), "s^(-7/6)");
-        assert_eq!(Dim::MASS.mul(Dim::LENGTH.inv()).unwrap().to_string(), "Msun*m^-1");
+        assert_eq!(Dim::MASS.times(Dim::LENGTH.inv()).unwrap().to_string(), "Msun*m^-1");
     }
 }

@@ -123,7 +123,7 @@ impl Scene {
     fn new(pipeline: ScenePipeline) -> Result<Scene, Error> {
         let mut fwd = pipeline.pruned.clone();
         fwd.grads.clear();
-        let forward_ir = gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd));
+        let forward_ir = gwml_compiler::passes::specialise(&gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd)));
         let forward = codegen::compile(&forward_ir).map_err(Error::Codegen)?;
         Ok(Scene { pipeline, forward_ir, forward, gradient: OnceCell::new() })
     }
@@ -337,19 +337,27 @@ impl<'s> Run<'s> {
         }
         // (Re)allocate buffers for this kernel's layout.
         let floats = |b: &codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
-        if self.scratch.len() != layout.buffers.len() || self.scratch.iter().zip(&layout.buffers).any(|((c, _), b)| *c != b.complex) {
+        if self.filled_for != Some(kernel as *const Kernel) {
             self.scratch = layout.buffers.iter().map(|b| (b.complex, Buffer::new(layout.precision, floats(b)))).collect();
-        }
-        for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
-            if let BufferKind::Input(i) = info.kind {
-                let data = self.inputs[i].as_ref().ok_or_else(|| {
-                    Error::Bind(format!(
-                        "input `{}` is not bound and has no default; bind it (e.g. `--input {}=FILE.npy`)",
-                        func.inputs[i].name, func.inputs[i].name
-                    ))
-                })?;
-                fill(buf, data, info.complex);
+            for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
+                match info.kind {
+                    BufferKind::Input(i) => {
+                        let data = self.inputs[i].as_ref().ok_or_else(|| {
+                            Error::Bind(format!(
+                                "input `{}` is not bound and has no default; bind it (e.g. `--input {}=FILE.npy`)",
+                                func.inputs[i].name, func.inputs[i].name
+                            ))
+                        })?;
+                        fill(buf, data, info.complex);
+                    }
+                    BufferKind::Table(k) => {
+                        let data: Vec<C64> = func.tables[k].data.iter().map(|x| C64::new(*x, 0.0)).collect();
+                        fill(buf, &data, false);
+                    }
+                    BufferKind::Scratch | BufferKind::Output(_) => {}
+                }
             }
+            self.filled_for = Some(kernel as *const Kernel);
         }
         self.scalars.clear();
         self.scalars.resize(layout.scalar_slots, 0.0);

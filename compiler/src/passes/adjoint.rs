@@ -95,7 +95,7 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
         }
     };
     match inst.op {
-        Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) => {
+        Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) | Op::Table(_) => {
             vec![]
         }
         Op::Unary(u, a) => {

@@ -5,12 +5,15 @@
 //! - [`adjoint`]: symbolic reverse-mode differentiation with activity analysis.
 //! - [`simplify`]: rebuild through the folding builder (CSE, constant
 //!   folding, algebraic identities), then prune.
+//! - [`specialise`]: fold what the grid fixes into precomputed tables.
 
 mod adjoint;
 mod prune;
+mod specialise;
 
 pub use adjoint::adjoint;
 pub use prune::prune;
+pub use specialise::specialise;
 
 use crate::builder::Builder;
 use crate::ir::{Function, Value};

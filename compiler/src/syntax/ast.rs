@@ -123,6 +123,7 @@ pub struct SceneDef {
 
 /// A statement inside a scene.
 #[derive(Clone, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)] // few per scene; boxing would only add noise
 pub enum SceneStmt {
     /// `grid f = frequencies(...)`.
     Grid { name: Ident, def: Expr },

@@ -47,7 +47,8 @@ fn unit_expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser
 }
 
 fn type_ann<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, TypeAnn, Err<'a>> + Clone {
-    let elem = select! { Token::Ident(s) if s == "real" => ElemAnn::Real, Token::Ident(s) if s == "complex" => ElemAnn::Complex }.map_with(|e, x| Spanned::new(e, x.span()));
+    let elem = select! { Token::Ident(s) if s == "real" => ElemAnn::Real, Token::Ident(s) if s == "complex" => ElemAnn::Complex }
+        .map_with(|e, x| Spanned::new(e, x.span()));
     let grid = ident().delimited_by(op("["), op("]"));
     elem.or_not()
         .then(grid.or_not())

@@ -1,0 +1,154 @@
+//! Specialisation to the scene's grids: fold what the grid fixes.
+//!
+//! Profiles of TaylorF2-like workloads put most of the time in pow, cbrt,
+//! sin/cos and log per frequency bin. Many of those depend only on the grid
+//! (`f^(-7/6)`, a PSD model), so they are computed once at compile time by
+//! the reference interpreter and stored as tables the kernel reads.
+//!
+//! Two rewrites make more values grid-only:
+//! - `(s · a)^c → s^c · a^c` when `s` is a scalar and `a` a grid-only array
+//!   whose values are all positive (checked on the actual grid), so
+//!   `(π Mc f)^(-5/3)` costs one scalar pow per call and a table read per bin;
+//! - the same for `(a / s)^c` and `(s / a)^c`.
+//!
+//! Then every real grid-only array that a non-grid-only instruction (or a
+//! result) uses, and that costs more than a load, becomes a table.
+
+use crate::builder::Builder;
+use crate::interp;
+use crate::ir::*;
+
+fn grid_only_flags(func: &Function) -> Vec<bool> {
+    let mut g = vec![false; func.insts.len()];
+    for (i, inst) in func.insts.iter().enumerate() {
+        g[i] = match inst.op {
+            Op::Const(_) | Op::ConstComplex(..) | Op::GridCoord(_) | Op::Table(_) => true,
+            Op::Param(_) | Op::Input(_) | Op::Reduce(..) => false,
+            op => op.operands().iter().all(|v| g[v.index()]),
+        };
+    }
+    g
+}
+
+/// Values of every instruction with params set to NaN and inputs to zero:
+/// exact for grid-only values, which depend on neither.
+fn evaluate_all(func: &Function) -> Vec<Vec<f64>> {
+    let inputs: Vec<interp::Tensor> =
+        func.inputs.iter().map(|i| vec![num_complex::Complex64::new(0.0, 0.0); func.len_of(i.ty.shape)]).collect();
+    let r = interp::interpret(func, &vec![f64::NAN; func.params.len()], &inputs);
+    r.values.into_iter().map(|t| t.into_iter().map(|z| z.re).collect()).collect()
+}
+
+/// Splits powers of products and folds grid-only arrays into tables.
+pub fn specialise(func: &Function) -> Function {
+    let split = split_powers(func);
+    tabulate(&split)
+}
+
+fn split_powers(func: &Function) -> Function {
+    let grid_only = grid_only_flags(func);
+    let values = evaluate_all(func);
+    let mut header = func.clone();
+    header.insts.clear();
+    let mut b = Builder::new(header, true);
+    let mut map: Vec<Value> = Vec::with_capacity(func.insts.len());
+    let positive = |v: Value| func.ty(v).elem == Elem::Real && grid_only[v.index()] && values[v.index()].iter().all(|x| *x > 0.0);
+    let scalar_of = |v: Value| match func.insts[v.index()].op {
+        Op::Broadcast(s, _) if func.ty(s).elem == Elem::Real => Some(s),
+        _ => None,
+    };
+    for inst in &func.insts {
+        let mut rewritten = None;
+        if let Op::PowConst(base, c) = inst.op {
+            if let Op::Binary(op @ (BinOp::Mul | BinOp::Div), x, y) = func.insts[base.index()].op {
+                // (s·a)^c, (a·s)^c, (a/s)^c, (s/a)^c with a grid-only and positive.
+                let pick = match (scalar_of(x), scalar_of(y)) {
+                    (Some(s), None) if positive(y) => Some((s, y, true)),
+                    (None, Some(s)) if positive(x) => Some((s, x, false)),
+                    _ => None,
+                };
+                if let Some((s, a, scalar_first)) = pick {
+                    let Shape::Grid(g) = inst.ty.shape else { unreachable!("a broadcast operand means an array") };
+                    let cf = f64::from_bits(c);
+                    let sp = b.emit(Op::PowConst(map[s.index()], c));
+                    let sb = b.emit(Op::Broadcast(sp, g));
+                    let ap = b.emit(Op::PowConst(map[a.index()], c));
+                    rewritten = Some(match (op, scalar_first) {
+                        (BinOp::Mul, _) => b.mul(sb, ap),
+                        (_, false) => b.div(ap, sb), // (a/s)^c = a^c / s^c
+                        (_, true) => {
+                            // (s/a)^c = s^c · a^(-c)
+                            let an = b.emit(Op::PowConst(map[a.index()], (-cf).to_bits()));
+                            b.mul(sb, an)
+                        }
+                    });
+                }
+            }
+        }
+        let v = match rewritten {
+            Some(v) => v,
+            None => {
+                let op = inst.op.map_operands(|v| map[v.index()]);
+                b.emit(op)
+            }
+        };
+        map.push(v);
+    }
+    let mut out = b.func;
+    for o in &mut out.outputs {
+        o.value = map[o.value.index()];
+    }
+    for g in &mut out.grads {
+        g.value = g.value.map(|v| map[v.index()]);
+    }
+    super::prune(&out)
+}
+
+fn tabulate(func: &Function) -> Function {
+    let grid_only = grid_only_flags(func);
+    let mut frontier = vec![false; func.insts.len()];
+    for (i, inst) in func.insts.iter().enumerate() {
+        if !grid_only[i] {
+            for v in inst.op.operands() {
+                frontier[v.index()] = true;
+            }
+        }
+    }
+    for r in func.roots() {
+        frontier[r.index()] = true;
+    }
+    // Tables are real: a complex grid-only frontier value is rebuilt per bin
+    // from its (tabulated) real operands.
+    for i in (0..func.insts.len()).rev() {
+        if frontier[i] && grid_only[i] && func.insts[i].ty.elem != Elem::Real {
+            for v in func.insts[i].op.operands() {
+                frontier[v.index()] = true;
+            }
+        }
+    }
+    let values = evaluate_all(func);
+    let mut out = func.clone();
+    for (i, inst) in func.insts.iter().enumerate() {
+        let cheap = matches!(inst.op, Op::Const(_) | Op::ConstComplex(..) | Op::GridCoord(_) | Op::Table(_) | Op::Broadcast(..));
+        if let (true, true, false, Shape::Grid(g), Elem::Real) = (frontier[i], grid_only[i], cheap, inst.ty.shape, inst.ty.elem) {
+            out.tables.push(Table { grid: g, data: values[i].clone() });
+            out.insts[i].op = Op::Table(out.tables.len() as u32 - 1);
+        }
+    }
+    let pruned = super::prune(&out);
+    drop_unused_tables(pruned)
+}
+
+fn drop_unused_tables(mut func: Function) -> Function {
+    let mut used: Vec<u32> = func.insts.iter().filter_map(|i| if let Op::Table(t) = i.op { Some(t) } else { None }).collect();
+    used.sort_unstable();
+    used.dedup();
+    let tables = std::mem::take(&mut func.tables);
+    func.tables = used.iter().map(|t| tables[*t as usize].clone()).collect();
+    for inst in &mut func.insts {
+        if let Op::Table(t) = inst.op {
+            inst.op = Op::Table(used.iter().position(|u| *u == t).expect("used") as u32);
+        }
+    }
+    func
+}
