@@ -47,30 +47,30 @@ pub const CONSTANTS: &[Constant] = &[
 /// Names callable as builtins, with a one-line description (used by
 /// diagnostics and the REPL's completion).
 pub const BUILTINS: &[(&str, &str)] = &[
-    ("sqrt", "square root"),
-    ("cbrt", "cube root"),
-    ("exp", "exponential (real or complex)"),
-    ("log", "natural logarithm"),
-    ("sin", "sine"),
-    ("cos", "cosine"),
-    ("tan", "tangent"),
-    ("tanh", "hyperbolic tangent"),
-    ("atan2", "atan2(y, x)"),
-    ("abs", "absolute value or complex modulus"),
-    ("min", "min(a, b) elementwise, or min(x) over a grid"),
-    ("max", "max(a, b) elementwise, or max(x) over a grid"),
-    ("clamp", "clamp(x, lo, hi)"),
-    ("re", "real part"),
-    ("im", "imaginary part"),
-    ("conj", "complex conjugate"),
-    ("abs2", "squared modulus |z|^2"),
-    ("cis", "cis(θ) = e^{iθ}"),
-    ("complex", "complex(re, im)"),
-    ("select", "select(cond, a, b)"),
-    ("sum", "sum over a grid"),
-    ("mean", "mean over a grid"),
-    ("frequencies", "frequencies(from:, to:, step:) grid"),
-    ("times", "times(rate:, duration:) grid"),
+    ("sqrt", "sqrt(x): square root"),
+    ("cbrt", "cbrt(x): cube root"),
+    ("exp", "exp(x): exponential of a dimensionless real or complex x"),
+    ("log", "log(x): natural logarithm of a dimensionless x"),
+    ("sin", "sin(x): sine of a dimensionless x"),
+    ("cos", "cos(x): cosine of a dimensionless x"),
+    ("tan", "tan(x): tangent of a dimensionless x"),
+    ("tanh", "tanh(x): hyperbolic tangent of a dimensionless x"),
+    ("atan2", "atan2(y, x): angle of the point (x, y), y and x in the same unit"),
+    ("abs", "abs(x): absolute value, or modulus of a complex x"),
+    ("min", "min(a, b): elementwise minimum, or min(x): minimum over the grid"),
+    ("max", "max(a, b): elementwise maximum, or max(x): maximum over the grid"),
+    ("clamp", "clamp(x, lo, hi): x limited to lo..hi"),
+    ("re", "re(z): real part"),
+    ("im", "im(z): imaginary part"),
+    ("conj", "conj(z): complex conjugate"),
+    ("abs2", "abs2(z): squared modulus |z|^2"),
+    ("cis", "cis(theta): e^(i theta) for a dimensionless real theta"),
+    ("complex", "complex(re, im): a complex number from two reals of the same unit"),
+    ("select", "select(cond, a, b): a where cond holds, else b"),
+    ("sum", "sum(x): sum over the grid of x"),
+    ("mean", "mean(x): mean over the grid of x"),
+    ("frequencies", "frequencies(from:, to:, step:): a frequency grid (in `grid` declarations)"),
+    ("times", "times(rate:, duration:): a time grid (in `grid` declarations)"),
 ];
 
 /// A checked, lowered value: IR value and physical dimension.
@@ -98,11 +98,13 @@ struct Scope<'a> {
     values: HashMap<String, Tv>,
     grids: HashMap<String, ir::GridId>,
     lets: HashMap<String, LetSlot<'a>>,
+    /// Names whose declaration failed (already reported): uses stay silent.
+    poisoned: HashSet<String>,
 }
 
 impl<'a> Scope<'a> {
     fn new(kind: ScopeKind) -> Self {
-        Scope { kind, values: HashMap::new(), grids: HashMap::new(), lets: HashMap::new() }
+        Scope { kind, values: HashMap::new(), grids: HashMap::new(), lets: HashMap::new(), poisoned: HashSet::new() }
     }
 }
 
@@ -247,7 +249,11 @@ impl<'a> Checker<'a> {
         // Grids first: inputs' types name them.
         for st in &scene.stmts {
             if let SceneStmt::Grid { name, def } = st {
-                if let Some(grid) = self.grid_def(name, def) {
+                let Some(grid) = self.grid_def(name, def) else {
+                    scope.poisoned.insert(name.node.clone());
+                    continue;
+                };
+                {
                     let id = ir::GridId(b.func.grids.len() as u32);
                     b.func.grids.push(grid);
                     scope.grids.insert(name.node.clone(), id);
@@ -265,6 +271,8 @@ impl<'a> Checker<'a> {
                         b.func.params.push(info);
                         let v = b.push(Op::Param(idx));
                         scope.values.insert(p.name.node.clone(), Tv { v, dim });
+                    } else {
+                        scope.poisoned.insert(p.name.node.clone());
                     }
                 }
                 SceneStmt::Input { name, ty, default } => {
@@ -274,6 +282,8 @@ impl<'a> Checker<'a> {
                         b.func.inputs.push(ir::InputInfo { name: name.node.clone(), ty: ity, scale, unit, default });
                         let v = b.push(Op::Input(idx));
                         scope.values.insert(name.node.clone(), Tv { v, dim });
+                    } else {
+                        scope.poisoned.insert(name.node.clone());
                     }
                 }
                 SceneStmt::Let(l) | SceneStmt::Output(l) => {
@@ -517,7 +527,11 @@ impl<'a> Checker<'a> {
                         self.error(
                             Diagnostic::error(
                                 p.default.as_ref().map(|e| e.span).unwrap_or(p.span),
-                                format!("default {d} of `{}` is outside its bounds {l}..{h}", p.name.node),
+                                format!(
+                                    "default {d} of `{}` is outside its bounds {l}..{h}{}",
+                                    p.name.node,
+                                    if unit == "1" { String::new() } else { format!(" {unit}") }
+                                ),
                             )
                             .with_help("move the default inside the bounds"),
                         );
@@ -551,6 +565,17 @@ impl<'a> Checker<'a> {
         }
         let tv = self.expr(&mut b, &mut scope, e)?;
         let vty = b.ty(tv.v);
+        let points = b.func.len_of(ty.shape);
+        if b.func.insts.len().saturating_mul(points) > crate::interp::EVAL_BUDGET {
+            self.error(
+                Diagnostic::error(
+                    e.span,
+                    format!("the default of `{}` over {points} points is too large to compute at compile time", name.node),
+                )
+                .with_help("bind the input at run time instead (e.g. `--input NAME=FILE.npy`), or use a coarser grid"),
+            );
+            return None;
+        }
         if tv.dim != dim {
             self.error(unit_mismatch(e.span, dim, tv.dim, &format!("input `{}`", name.node)));
             return None;
@@ -782,6 +807,9 @@ impl<'a> Checker<'a> {
         }
         if let Some(c) = CONSTANTS.iter().find(|c| c.name == n) {
             return Some(Tv { v: b.real(c.value), dim: c.dim });
+        }
+        if scope.poisoned.contains(n) {
+            return None;
         }
         if scope.kind == ScopeKind::Const {
             self.error(
@@ -1032,7 +1060,7 @@ impl<'a> Checker<'a> {
                     ),
                 )
                 .with_label(format!("{} argument{}", vals.len(), if vals.len() == 1 { "" } else { "s" }))
-                .with_help(BUILTINS.iter().find(|x| x.0 == name).map(|x| format!("`{name}`: {}", x.1)).unwrap_or_default()),
+                .with_help(BUILTINS.iter().find(|x| x.0 == name).map(|x| format!("usage: {}", x.1)).unwrap_or_default()),
             );
             return None;
         }

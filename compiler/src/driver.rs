@@ -109,7 +109,10 @@ impl Program {
         let mut scenes = Vec::new();
         {
             let mut checker = Checker::new(modules.clone());
-            for m in modules.values() {
+            // Source order, so diagnostics come out in the same order every run.
+            let mut in_order: Vec<&ast::ModuleDef> = modules.values().copied().collect();
+            in_order.sort_by_key(|m| (m.span.file, m.span.start));
+            for m in in_order {
                 checker.resolve_module(m);
             }
             diags.append(&mut checker.take_diagnostics());

@@ -6,6 +6,10 @@ use crate::eval;
 use crate::ir::*;
 use num_complex::Complex64 as C64;
 
+/// Most elements (instructions × grid points) the compiler evaluates at
+/// compile time (input defaults, grid folding): about 512 MiB of values.
+pub const EVAL_BUDGET: usize = 1 << 25;
+
 /// A value during interpretation: one element for scalars, `len` for arrays.
 pub type Tensor = Vec<C64>;
 

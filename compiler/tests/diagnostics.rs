@@ -315,7 +315,6 @@ fn param_with_empty_bounds() {
 }
 
 #[test]
-#[ignore = "BUG: driver.rs Program::parse resolves modules in HashMap iteration order (`for m in modules.values()`), so when several modules have errors the diagnostics come out in a different order from run to run (and from one parse to the next in the same process); expected source order"]
 fn diagnostics_come_out_in_a_stable_order() {
     let src = "module a1(x) { x + u1 }\nmodule a2(x) { x + u2 }\nmodule a3(x) { x + u3 }\nmodule a4(x) { x + u4 }\nmodule a5(x) { x + u5 }\n\nscene s {\n  param x = 1.0\n  output y = x\n}\n";
     let first = messages(&fail(src)).iter().map(|s| s.to_string()).collect::<Vec<_>>();

@@ -171,18 +171,17 @@ fn activity_analysis_builds_no_adjoint_for_unrequested_params() {
     assert_eq!(adjoint_uses_of_param(&pl, c), Vec::<String>::new(), "adjoint instructions for the unrequested param c:\n{}", pl.adjoint);
     // Op counts of each stage.
     let counts = |pl: &ScenePipeline| (pl.stats.checked_ops, pl.stats.pruned_ops, pl.stats.adjoint_ops, pl.stats.optimized_ops);
-    assert_eq!(counts(&pl), (23, 17, 21, 16), "{:?}", pl.stats);
+    assert_eq!(counts(&pl), (23, 17, 19, 16), "{:?}", pl.stats);
     // Asking for dy/dc as well adds exactly the adjoint of sin(c) * c.
     let with_c = pipeline("prune_demo.gw", &PRUNE_DEMO.replace("grad y wrt [a]", "grad y wrt [a, c]"), "prune_demo");
     assert!(has_unary(&with_c.adjoint, UnOp::Cos));
     assert!(!adjoint_uses_of_param(&with_c, c).is_empty());
-    assert_eq!(counts(&with_c), (23, 17, 24, 19), "{:?}", with_c.stats);
+    assert_eq!(counts(&with_c), (23, 17, 22, 19), "{:?}", with_c.stats);
     insta::assert_snapshot!("prune_demo_adjoint_ir", pl.adjoint.to_string());
     insta::assert_snapshot!("prune_demo_optimized_ir", pl.optimized.to_string());
 }
 
 #[test]
-#[ignore = "BUG: passes/adjoint.rs adjoint() asks rule() for the contributions to EVERY operand and only then skips the inactive ones, so the adjoint IR contains dead instructions computing adjoints nobody asked for (e.g. `mul %g, %w` for the unrequested param b in `2.0 * (w * b)`); simplify prunes them, but the pass does not build 'nothing for parameters nobody asked about' as its docs say"]
 fn adjoint_ir_has_no_dead_instructions() {
     let pl = pipeline("prune_demo.gw", PRUNE_DEMO, "prune_demo");
     let pruned_again = gwml_compiler::passes::prune(&pl.adjoint);

@@ -516,12 +516,11 @@ fn grad_tanh() {
 
 #[test]
 fn grad_tanh_saturated_is_finite() {
-    // The derivative 1/cosh^2 underflows relative to 1 here, so only compare
-    // with finite differences (which see a flat function) and require
-    // finite, non-negative, tiny gradients.
+    // Finite differences see a flat function here (tanh rounds to ±1), so
+    // require finite, non-negative, tiny gradients; the tails test checks
+    // their accuracy against 1/cosh².
     let pl = compile_formula("", "tanh(x) + tanh(y)");
     for (x, y) in [(20.0, -20.0), (400.0, -400.0), (-400.0, 20.0), (1e300, -1e300)] {
-        check_point(&pl, "tanh saturated", &[x, y], &[], "out", &["x", "y"], Cs::No, Fd::Relative);
         let g = adjoint_grads(&pl.optimized, &[x, y], &[], "out", &["x", "y"]);
         for d in g {
             assert!(d.is_finite() && (0.0..1e-15).contains(&d), "tanh gradient {d} at ({x}, {y})");
@@ -530,7 +529,6 @@ fn grad_tanh_saturated_is_finite() {
 }
 
 #[test]
-#[ignore = "BUG: passes/adjoint.rs rule() for UnOp::Tanh uses g*(1 - z*z), which cancels catastrophically in the tails: d tanh(x)/dx has relative error ~eps*cosh(x)^2 (1.1e-8 at x = 10, 2.2e-16 instead of 1.25e-16 at x = 19) and is exactly 0 at x = 20 (true 1.7e-17); 1/cosh(x)^2 is accurate"]
 fn grad_tanh_is_relatively_accurate_in_the_tails() {
     let pl = compile_formula("", "tanh(x) + tanh(y)");
     for (x, y) in [(10.0, -10.0), (20.0, -20.0)] {
@@ -598,7 +596,6 @@ fn grad_atan2_near_branch_cut() {
 }
 
 #[test]
-#[ignore = "BUG: passes/adjoint.rs rule() for BinOp::Atan2 divides by r = x*x + y*y, which underflows to 0 when |x|, |y| < ~1e-162: the gradient of atan2(x, y) at x = y = 1e-200 (or 1e-170) is [inf, -inf], expected [5e199, -5e199]; scaling x and y by max(|x|, |y|) first avoids it"]
 fn grad_atan2_tiny_arguments_do_not_underflow() {
     let pl = compile_formula("", "atan2(x, y)");
     let g = adjoint_grads(&pl.optimized, &[1e-200, 1e-200], &[], "out", &["x", "y"]);
@@ -702,7 +699,6 @@ fn grad_max_min_reduction() {
 }
 
 #[test]
-#[ignore = "BUG: passes/adjoint.rs rule() for Reduce::Max gives the full adjoint to EVERY element equal to the maximum, so with ties the gradient is multiplied by the number of tied elements (not a subgradient): on g = 1..4 Hz, d/dx max(abs(x * (g / 1 Hz - 2.5))) is 3.0 (expected 1.5, two elements tie), and max(x + 0.0 * g / 1 Hz) + min(y + 0.0 * g / 1 Hz) gives [4, 4] (expected [1, 1]); min(x) is lowered through Reduce::Max so it has the same bug"]
 fn grad_max_reduction_with_ties_is_a_subgradient() {
     let pl = compile_formula("", "max(abs(x * (g / 1 Hz - 2.5))) + y");
     let g = adjoint_grads(&pl.optimized, &[0.4, 0.0], &[], "out", &["x", "y"]);

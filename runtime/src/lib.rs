@@ -169,11 +169,20 @@ enum Buffer {
 }
 
 impl Buffer {
-    fn new(precision: Precision, floats: usize) -> Buffer {
-        match precision {
-            Precision::F64 => Buffer::F64(vec![0.0; floats]),
-            Precision::F32 => Buffer::F32(vec![0.0; floats]),
+    /// Allocates fallibly, so a scene over a huge grid is an error, not an abort.
+    fn new(precision: Precision, floats: usize) -> Result<Buffer, Error> {
+        fn zeros<T: Clone + Default>(n: usize) -> Result<Vec<T>, Error> {
+            let mut v = Vec::new();
+            v.try_reserve_exact(n).map_err(|_| {
+                Error::Bind(format!("cannot allocate a buffer of {n} values: the scene's grids are too large for this machine's memory"))
+            })?;
+            v.resize(n, T::default());
+            Ok(v)
         }
+        Ok(match precision {
+            Precision::F64 => Buffer::F64(zeros(floats)?),
+            Precision::F32 => Buffer::F32(zeros(floats)?),
+        })
     }
     fn ptr(&mut self) -> *mut u8 {
         match self {
@@ -338,7 +347,8 @@ impl<'s> Run<'s> {
         // (Re)allocate buffers for this kernel's layout.
         let floats = |b: &codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
         if self.filled_for != Some(kernel as *const Kernel) {
-            self.scratch = layout.buffers.iter().map(|b| (b.complex, Buffer::new(layout.precision, floats(b)))).collect();
+            self.scratch =
+                layout.buffers.iter().map(|b| Ok((b.complex, Buffer::new(layout.precision, floats(b))?))).collect::<Result<_, Error>>()?;
             for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
                 match info.kind {
                     BufferKind::Input(i) => {

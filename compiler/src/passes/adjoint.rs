@@ -50,7 +50,7 @@ pub fn adjoint(func: &Function) -> Function {
                 continue;
             };
             let inst = func.insts[i];
-            for (operand, contribution) in rule(&mut b, inst, Value(i as u32), g) {
+            for (operand, contribution) in rule(&mut b, inst, Value(i as u32), g, &active) {
                 if !active[operand.index()] {
                     continue;
                 }
@@ -82,7 +82,10 @@ pub fn adjoint(func: &Function) -> Function {
 }
 
 /// The contributions of `z = inst` with adjoint `g` to its operands' adjoints.
-fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> {
+/// Only contributions to active operands are built: nothing is emitted for
+/// values that do not depend on a requested param.
+fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value, active: &[bool]) -> Vec<(Value, Value)> {
+    let want = |v: Value| active[v.index()];
     let one = |b: &mut Builder, like: Value| {
         let ty = b.ty(like);
         b.constant(C64::new(1.0, 0.0), ty)
@@ -124,11 +127,24 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
                     let gs = b.mul(g, s);
                     b.neg(gs)
                 }
-                UnOp::Tan | UnOp::Tanh => {
+                UnOp::Tan => {
                     let zz = b.mul(z, z);
                     let o = one(b, z);
-                    let d = if u == UnOp::Tan { b.add(o, zz) } else { b.sub(o, zz) };
+                    let d = b.add(o, zz);
                     b.mul(g, d)
+                }
+                UnOp::Tanh => {
+                    // 1 - tanh² cancels in the tails; sech² = 4e/(1+e)² with
+                    // e = exp(-2|x|) is accurate everywhere.
+                    let ax = b.unary(UnOp::Abs, a);
+                    let m2 = b.scale(ax, -2.0);
+                    let e = b.unary(UnOp::Exp, m2);
+                    let o = one(b, e);
+                    let ope = b.add(o, e);
+                    let den = b.mul(ope, ope);
+                    let num = b.scale(e, 4.0);
+                    let sech2 = b.div(num, den);
+                    b.mul(g, sech2)
                 }
                 UnOp::Abs if b.ty(a).elem == Elem::Complex => {
                     // ā = g · a / |a|, and 0 where a = 0 (a subgradient).
@@ -164,66 +180,99 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
             };
             vec![(a, c)]
         }
-        Op::Binary(op, x, y) => match op {
-            BinOp::Add => vec![(x, g), (y, g)],
-            BinOp::Sub => {
-                let ng = b.neg(g);
-                vec![(x, g), (y, ng)]
+        Op::Binary(op, x, y) => {
+            let mut out = Vec::new();
+            match op {
+                BinOp::Add => out = vec![(x, g), (y, g)],
+                BinOp::Sub => {
+                    out.push((x, g));
+                    if want(y) {
+                        out.push((y, b.neg(g)));
+                    }
+                }
+                BinOp::Mul => {
+                    if want(x) {
+                        let cy = conj(b, y);
+                        out.push((x, b.mul(g, cy)));
+                    }
+                    if want(y) {
+                        let cx = conj(b, x);
+                        out.push((y, b.mul(g, cx)));
+                    }
+                }
+                BinOp::Div => {
+                    if want(x) {
+                        let cy = conj(b, y);
+                        out.push((x, b.div(g, cy)));
+                    }
+                    if want(y) {
+                        let zy = b.div(z, y);
+                        let czy = conj(b, zy);
+                        let t = b.mul(g, czy);
+                        out.push((y, b.neg(t)));
+                    }
+                }
+                BinOp::Pow => {
+                    if want(x) {
+                        let o = one(b, y);
+                        let ym1 = b.sub(y, o);
+                        let p = b.binary(BinOp::Pow, x, ym1);
+                        let yp = b.mul(y, p);
+                        out.push((x, b.mul(g, yp)));
+                    }
+                    if want(y) {
+                        let lx = b.unary(UnOp::Log, x);
+                        let zl = b.mul(z, lx);
+                        out.push((y, b.mul(g, zl)));
+                    }
+                }
+                BinOp::Atan2 => {
+                    // z = atan2(x, y): ∂/∂x = y/r, ∂/∂y = -x/r with r = x² + y².
+                    // Scaling both by m = max(|x|, |y|) keeps r from under- or
+                    // overflowing; at the origin the gradient is taken as 0.
+                    let (ax, ay) = (b.unary(UnOp::Abs, x), b.unary(UnOp::Abs, y));
+                    let m = b.binary(BinOp::Max, ax, ay);
+                    let (xs, ys) = (b.div(x, m), b.div(y, m));
+                    let (xx, yy) = (b.mul(xs, xs), b.mul(ys, ys));
+                    let r = b.add(xx, yy);
+                    let rm = b.mul(r, m);
+                    let zero = b.zero(b.ty(g));
+                    let nonzero = b.binary(BinOp::Gt, m, zero);
+                    if want(x) {
+                        let gy = b.mul(g, ys);
+                        let d = b.div(gy, rm);
+                        out.push((x, b.emit(Op::Select(nonzero, d, zero))));
+                    }
+                    if want(y) {
+                        let gx = b.mul(g, xs);
+                        let d = b.div(gx, rm);
+                        let nd = b.neg(d);
+                        out.push((y, b.emit(Op::Select(nonzero, nd, zero))));
+                    }
+                }
+                BinOp::Min | BinOp::Max => {
+                    let cmp = if op == BinOp::Min { BinOp::Le } else { BinOp::Ge };
+                    let c = b.binary(cmp, x, y);
+                    let zero = b.zero(b.ty(g));
+                    if want(x) {
+                        out.push((x, b.emit(Op::Select(c, g, zero))));
+                    }
+                    if want(y) {
+                        out.push((y, b.emit(Op::Select(c, zero, g))));
+                    }
+                }
+                BinOp::Complex => {
+                    if want(x) {
+                        out.push((x, b.unary(UnOp::Re, g)));
+                    }
+                    if want(y) {
+                        out.push((y, b.unary(UnOp::Im, g)));
+                    }
+                }
+                BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne => {}
             }
-            BinOp::Mul => {
-                let (cx, cy) = (conj(b, x), conj(b, y));
-                let gx = b.mul(g, cy);
-                let gy = b.mul(g, cx);
-                vec![(x, gx), (y, gy)]
-            }
-            BinOp::Div => {
-                let cy = conj(b, y);
-                let gx = b.div(g, cy);
-                let zy = b.div(z, y);
-                let czy = conj(b, zy);
-                let t = b.mul(g, czy);
-                let gy = b.neg(t);
-                vec![(x, gx), (y, gy)]
-            }
-            BinOp::Pow => {
-                let o = one(b, y);
-                let ym1 = b.sub(y, o);
-                let p = b.binary(BinOp::Pow, x, ym1);
-                let yp = b.mul(y, p);
-                let gx = b.mul(g, yp);
-                let lx = b.unary(UnOp::Log, x);
-                let zl = b.mul(z, lx);
-                let gy = b.mul(g, zl);
-                vec![(x, gx), (y, gy)]
-            }
-            BinOp::Atan2 => {
-                // z = atan2(x, y) in operand order: ∂/∂x = y/r, ∂/∂y = -x/r
-                // with r = x² + y².
-                let xx = b.mul(x, x);
-                let yy = b.mul(y, y);
-                let r = b.add(xx, yy);
-                let gy_ = b.mul(g, y);
-                let gx = b.div(gy_, r);
-                let gx_ = b.mul(g, x);
-                let t = b.div(gx_, r);
-                let gy = b.neg(t);
-                vec![(x, gx), (y, gy)]
-            }
-            BinOp::Min | BinOp::Max => {
-                let cmp = if op == BinOp::Min { BinOp::Le } else { BinOp::Ge };
-                let c = b.binary(cmp, x, y);
-                let zero = b.zero(b.ty(g));
-                let gx = b.emit(Op::Select(c, g, zero));
-                let gy = b.emit(Op::Select(c, zero, g));
-                vec![(x, gx), (y, gy)]
-            }
-            BinOp::Complex => {
-                let gx = b.unary(UnOp::Re, g);
-                let gy = b.unary(UnOp::Im, g);
-                vec![(x, gx), (y, gy)]
-            }
-            BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne => vec![],
-        },
+            out
+        }
         Op::PowConst(a, c) => {
             let e = f64::from_bits(c);
             let p = b.emit(Op::PowConst(a, (e - 1.0).to_bits()));
@@ -232,9 +281,14 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
         }
         Op::Select(c, x, y) => {
             let zero = b.zero(b.ty(g));
-            let gx = b.emit(Op::Select(c, g, zero));
-            let gy = b.emit(Op::Select(c, zero, g));
-            vec![(x, gx), (y, gy)]
+            let mut out = Vec::new();
+            if want(x) {
+                out.push((x, b.emit(Op::Select(c, g, zero))));
+            }
+            if want(y) {
+                out.push((y, b.emit(Op::Select(c, zero, g))));
+            }
+            out
         }
         Op::Broadcast(a, _) => vec![(a, b.emit(Op::Reduce(Reduce::Sum, g)))],
         Op::Reduce(Reduce::Sum, a) => {
@@ -244,14 +298,18 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value) -> Vec<(Value, Value)> 
             vec![(a, b.emit(Op::Broadcast(g, grid)))]
         }
         Op::Reduce(Reduce::Max, a) => {
-            let Shape::Grid(grid) = b.ty(a).shape else {
-                return vec![];
-            };
+            // The maximum's adjoint is shared equally among tied elements
+            // (a subgradient; JAX's convention).
+            let Shape::Grid(grid) = b.ty(a).shape else { return vec![] };
             let zb = b.emit(Op::Broadcast(z, grid));
             let hit = b.binary(BinOp::Eq, a, zb);
-            let gb = b.emit(Op::Broadcast(g, grid));
-            let zero = b.zero(b.ty(gb));
-            vec![(a, b.emit(Op::Select(hit, gb, zero)))]
+            let ones = b.constant(C64::new(1.0, 0.0), b.ty(a));
+            let zeros = b.zero(b.ty(a));
+            let mask = b.emit(Op::Select(hit, ones, zeros));
+            let ties = b.emit(Op::Reduce(Reduce::Sum, mask));
+            let share = b.div(g, ties);
+            let gb = b.emit(Op::Broadcast(share, grid));
+            vec![(a, b.mul(gb, mask))]
         }
     }
 }

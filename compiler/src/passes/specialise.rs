@@ -40,7 +40,13 @@ fn evaluate_all(func: &Function) -> Vec<Vec<f64>> {
 }
 
 /// Splits powers of products and folds grid-only arrays into tables.
+/// Scenes whose grids are too large to evaluate within
+/// [`interp::EVAL_BUDGET`] are left as they are.
 pub fn specialise(func: &Function) -> Function {
+    let longest = func.grids.iter().map(|g| g.len).max().unwrap_or(1);
+    if func.insts.len().saturating_mul(longest) > interp::EVAL_BUDGET {
+        return func.clone();
+    }
     let split = split_powers(func);
     tabulate(&split)
 }
