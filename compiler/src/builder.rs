@@ -88,6 +88,20 @@ impl Builder {
         }
     }
 
+    /// The truth of a comparison of two constants (looking through
+    /// broadcasts), so `if pn_order >= 4 { .. } else { .. }` with constant
+    /// knobs keeps only one branch.
+    pub fn const_truth(&self, v: Value) -> Option<bool> {
+        match self.func.insts[v.index()].op {
+            Op::Binary(op, x, y) if self.func.insts[v.index()].ty.elem == Elem::Bool => {
+                let (a, b) = (self.const_of(x)?, self.const_of(y)?);
+                Some(eval::binary(op, a, b, self.ty(x).elem).re != 0.0)
+            }
+            Op::Broadcast(c, _) => self.const_truth(c),
+            _ => None,
+        }
+    }
+
     fn is_const(&self, v: Value, x: f64) -> bool {
         self.const_of(v) == Some(C64::new(x, 0.0))
     }
@@ -185,7 +199,7 @@ impl Builder {
             Op::PowConst(a, c) if f64::from_bits(c) == 1.0 => Some(a),
             Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => Some(self.constant(C64::new(1.0, 0.0), ty)),
             Op::Select(_, a, b) if a == b => Some(a),
-            Op::Select(c, a, b) => self.const_of(c).map(|k| if k.re != 0.0 { a } else { b }),
+            Op::Select(c, a, b) => self.const_truth(c).map(|k| if k { a } else { b }),
             _ => None,
         }
     }
