@@ -1,6 +1,8 @@
 //! The `gwml` command-line tool.
 
 mod commands;
+mod plot;
+mod repl;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -21,6 +23,9 @@ enum Command {
     Compile(CompileArgs),
     /// Evaluate a scene's outputs (and gradients with --grad).
     Run(RunArgs),
+    /// An interactive session: define, evaluate, differentiate, inspect, time.
+    /// Reads piped standard input line by line (exit status 1 if any line failed).
+    Repl,
 }
 
 /// Which stage's text to print.
@@ -104,6 +109,10 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Compile(a) => commands::compile(a),
         Command::Run(a) => commands::run(a),
+        Command::Repl => {
+            let failures = repl::run();
+            return if failures == 0 { ExitCode::SUCCESS } else { ExitCode::FAILURE };
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -196,6 +196,19 @@ impl Builder {
                 Op::Unary(UnOp::Conj, x) => Some(x),
                 _ => None,
             },
+            // A reduction of a broadcast scalar: n·s for sums, s for max.
+            Op::Reduce(r, a) => match self.func.insts[a.index()].op {
+                Op::Broadcast(s, g) => Some(match r {
+                    Reduce::Max => s,
+                    Reduce::Sum => {
+                        let n = self.func.grids.get(g.0 as usize).map_or(0, |g| g.len) as f64;
+                        let k = self.constant(C64::new(n, 0.0), self.ty(s).with_elem(Elem::Real));
+                        let k = if self.ty(s).elem == Elem::Complex { self.emit(Op::Unary(UnOp::ToComplex, k)) } else { k };
+                        self.emit(Op::Binary(BinOp::Mul, s, k))
+                    }
+                }),
+                _ => None,
+            },
             Op::PowConst(a, c) if f64::from_bits(c) == 1.0 => Some(a),
             Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => Some(self.constant(C64::new(1.0, 0.0), ty)),
             Op::Select(_, a, b) if a == b => Some(a),

@@ -2,8 +2,11 @@
 //! binary so `use std::NAME::{...}` works from any directory.
 
 /// `(name, source)` of every stdlib file; `use std::NAME` loads `NAME`.
-pub const FILES: &[(&str, &str)] =
-    &[("chirp", include_str!("../../stdlib/chirp.gw")), ("detector", include_str!("../../stdlib/detector.gw"))];
+pub const FILES: &[(&str, &str)] = &[
+    ("chirp", include_str!("../../stdlib/chirp.gw")),
+    ("detector", include_str!("../../stdlib/detector.gw")),
+    ("taylorf2", include_str!("../../stdlib/taylorf2.gw")),
+];
 
 /// The source of stdlib file `name`.
 pub fn source(name: &str) -> Option<&'static str> {

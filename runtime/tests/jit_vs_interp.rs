@@ -201,3 +201,21 @@ fn grid_only_work_is_folded_into_tables() {
     assert!(rel(out.scalar("loss").unwrap(), a.output(plain, "loss").unwrap()[0].re) < 1e-12);
     assert!(rel(out.grad("loss", "mc").unwrap(), a.grad(plain, "loss", "mc").unwrap()) < 1e-9);
 }
+
+/// A branch removed at compile time leaves no adjoint behind that could turn
+/// a finite gradient into NaN (here `log(0)` in the dead branch).
+#[test]
+fn folded_branch_leaves_no_nan_in_gradients() {
+    let src = "scene s {
+        grid f = frequencies(from: 1 Hz, to: 4 Hz, step: 1 Hz)
+        param a = 0.0
+        param b = 1.0
+        output y = sum(b * f / 1 Hz + (if 1.0 > 2.0 { log(a) * f / 1 Hz } else { 0.0 }))
+        grad y wrt [a, b]
+    }";
+    let model = Model::from_source("s.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    let out = scene.bind().value_and_grad().unwrap();
+    assert_eq!(out.grad("y", "a").unwrap(), 0.0);
+    assert_eq!(out.grad("y", "b").unwrap(), 10.0);
+}

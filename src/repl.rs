@@ -1,0 +1,537 @@
+//! `gwml repl`: an interactive session.
+//!
+//! The session is kept as source text: `use` lines, modules, and the
+//! statements of one implicit scene (`grid`, `param`, `input`, `let`).
+//! Every entry is checked by compiling that text with the new entry; an
+//! entry that fails is reported and forgotten, so an error never loses
+//! earlier definitions. Redefining a name replaces it, and since the whole
+//! session is recompiled, its dependents follow.
+
+use gwml::compiler::ir::{Function, Precision};
+use gwml::compiler::{Options, Program};
+use gwml::{Error, Model, Value};
+use rustyline::completion::{Completer, Pair};
+use rustyline::error::ReadlineError;
+use rustyline::highlight::Highlighter;
+use rustyline::hint::Hinter;
+use rustyline::validate::{ValidationContext, ValidationResult, Validator};
+use rustyline::{Context, Editor, Helper};
+use std::cell::RefCell;
+use std::io::{BufRead, IsTerminal, Write};
+use std::path::PathBuf;
+use std::rc::Rc;
+use std::time::Instant;
+
+const SCENE: &str = "__repl";
+const VALUE: &str = "__value";
+
+/// Commands, for `:help` and completion.
+const COMMANDS: &[(&str, &str)] = &[
+    (":grad", ":grad EXPR wrt NAME[, NAME...]   value and gradient of a real scalar"),
+    (":type", ":type EXPR                       type, shape and unit"),
+    (":ir", ":ir EXPR                         the IR of an expression"),
+    (":adjoint", ":adjoint EXPR wrt NAME[, ...]    forward and adjoint IR after optimisation"),
+    (":clif", ":clif EXPR                       the Cranelift IR of its kernel"),
+    (":time", ":time EXPR                       median time of one evaluation"),
+    (":load", ":load FILE                       modules and scenes of a .gw file"),
+    (":run", ":run SCENE [NAME=VALUE ...]      run a loaded scene"),
+    (":save", ":save FILE                       write the session as a .gw file"),
+    (":plot", ":plot EXPR to FILE.png              line plot of an array against its grid"),
+    (":precision", ":precision f32|f64               working precision"),
+    (":defs", ":defs                            list the session's definitions"),
+    (":help", ":help                            this list"),
+    (":quit", ":quit                            leave (or Ctrl-D)"),
+];
+
+/// What the user has defined.
+#[derive(Default)]
+struct Session {
+    uses: Vec<String>,
+    /// `(name, source)` of modules.
+    modules: Vec<(String, String)>,
+    /// `(name, source)` of scene statements: grid, param, input, let.
+    stmts: Vec<(String, String)>,
+    /// `(path, text)` of loaded files.
+    loaded: Vec<(String, String)>,
+    precision: Option<Precision>,
+}
+
+/// A new definition.
+enum Def {
+    Use(String),
+    Module(String, String),
+    Stmt(String, String),
+}
+
+impl Session {
+    /// The whole session as one program, with `extra` statements in its scene.
+    fn source(&self, new: Option<&Def>, extra: &str) -> String {
+        let mut uses = self.uses.clone();
+        let mut modules = self.modules.clone();
+        let mut stmts = self.stmts.clone();
+        match new {
+            Some(Def::Use(u)) => uses.push(u.clone()),
+            Some(Def::Module(n, s)) => replace(&mut modules, n, s),
+            Some(Def::Stmt(n, s)) => replace(&mut stmts, n, s),
+            None => {}
+        }
+        let mut out = String::new();
+        for u in &uses {
+            out += u;
+            out += "\n";
+        }
+        for (_, text) in &self.loaded {
+            out += text;
+            out += "\n";
+        }
+        for (_, m) in &modules {
+            out += m;
+            out += "\n";
+        }
+        out += &format!("scene {SCENE} {{\n");
+        for (_, s) in &stmts {
+            out += "    ";
+            out += s;
+            out += "\n";
+        }
+        out += extra;
+        out += "\n}\n";
+        out
+    }
+
+    fn commit(&mut self, d: Def) {
+        match d {
+            Def::Use(u) => {
+                if !self.uses.contains(&u) {
+                    self.uses.push(u)
+                }
+            }
+            Def::Module(n, s) => replace(&mut self.modules, &n, &s),
+            Def::Stmt(n, s) => replace(&mut self.stmts, &n, &s),
+        }
+    }
+
+    fn names(&self) -> Vec<String> {
+        self.modules.iter().chain(&self.stmts).map(|(n, _)| n.clone()).collect()
+    }
+}
+
+fn replace(list: &mut Vec<(String, String)>, name: &str, src: &str) {
+    match list.iter_mut().find(|(n, _)| n == name) {
+        Some(slot) => slot.1 = src.to_string(),
+        None => list.push((name.to_string(), src.to_string())),
+    }
+}
+
+/// Runs the REPL on a terminal, or line by line on piped input.
+/// Returns the number of entries that failed.
+pub fn run() -> usize {
+    let names = Rc::new(RefCell::new(Vec::new()));
+    let mut repl = Repl { session: Session::default(), names: names.clone(), color: std::io::stderr().is_terminal() };
+    if std::io::stdin().is_terminal() {
+        repl.interactive(names)
+    } else {
+        repl.piped()
+    }
+}
+
+struct Repl {
+    session: Session,
+    names: Rc<RefCell<Vec<String>>>,
+    color: bool,
+}
+
+/// Completion of names and commands; Enter continues a line while braces are open.
+struct ReplHelper {
+    names: Rc<RefCell<Vec<String>>>,
+}
+
+impl Completer for ReplHelper {
+    type Candidate = Pair;
+    fn complete(&self, line: &str, pos: usize, _: &Context<'_>) -> rustyline::Result<(usize, Vec<Pair>)> {
+        let start = line[..pos].rfind(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':')).map(|i| i + 1).unwrap_or(0);
+        let word = &line[start..pos];
+        let mut cands: Vec<String> = self.names.borrow().clone();
+        cands.extend(gwml::compiler::check::BUILTINS.iter().map(|b| b.0.to_string()));
+        cands.extend(gwml::compiler::check::CONSTANTS.iter().map(|c| c.name.to_string()));
+        cands.extend(gwml::compiler::units::UNITS.iter().map(|u| u.name.to_string()));
+        for (file, text) in gwml::compiler::stdlib::FILES {
+            cands.push(format!("std::{file}"));
+            cands.extend(
+                text.lines()
+                    .filter_map(|l| l.strip_prefix("module "))
+                    .map(|rest| rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>()),
+            );
+        }
+        cands.extend(["let", "param", "grid", "input", "module", "use", "wrt", "frequencies", "times"].iter().map(|s| s.to_string()));
+        if start == 0 {
+            cands.extend(COMMANDS.iter().map(|c| c.0.to_string()));
+        }
+        cands.sort();
+        cands.dedup();
+        let pairs = cands
+            .into_iter()
+            .filter(|c| c.starts_with(word) && !word.is_empty())
+            .map(|c| Pair { display: c.clone(), replacement: c })
+            .collect();
+        Ok((start, pairs))
+    }
+}
+
+impl Hinter for ReplHelper {
+    type Hint = String;
+}
+impl Highlighter for ReplHelper {}
+impl Validator for ReplHelper {
+    fn validate(&self, ctx: &mut ValidationContext<'_>) -> rustyline::Result<ValidationResult> {
+        Ok(if open_braces(ctx.input()) > 0 { ValidationResult::Incomplete } else { ValidationResult::Valid(None) })
+    }
+}
+impl Helper for ReplHelper {}
+
+/// Unclosed `{`, `(` and `[` outside comments.
+fn open_braces(text: &str) -> i64 {
+    let mut depth = 0i64;
+    for line in text.lines() {
+        let code = line.split("//").next().unwrap_or("");
+        for c in code.chars() {
+            match c {
+                '{' | '(' | '[' => depth += 1,
+                '}' | ')' | ']' => depth -= 1,
+                _ => {}
+            }
+        }
+    }
+    depth
+}
+
+fn history_path() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_DATA_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/share")))?;
+    let dir = base.join("gwml");
+    std::fs::create_dir_all(&dir).ok()?;
+    Some(dir.join("history"))
+}
+
+impl Repl {
+    fn interactive(&mut self, names: Rc<RefCell<Vec<String>>>) -> usize {
+        let Ok(mut rl) = Editor::<ReplHelper, rustyline::history::DefaultHistory>::new() else {
+            eprintln!("error: cannot open the terminal for line editing; reading standard input instead");
+            return self.piped();
+        };
+        rl.set_helper(Some(ReplHelper { names }));
+        let history = history_path();
+        if let Some(h) = &history {
+            let _ = rl.load_history(h);
+        }
+        println!("gwml {} — :help for commands, Ctrl-D to leave", env!("CARGO_PKG_VERSION"));
+        let mut failures = 0;
+        loop {
+            match rl.readline("gw> ") {
+                Ok(line) => {
+                    if line.trim().is_empty() {
+                        continue;
+                    }
+                    let _ = rl.add_history_entry(line.as_str());
+                    match self.entry(&line) {
+                        Ok(true) => {}
+                        Ok(false) => break,
+                        Err(msg) => {
+                            failures += 1;
+                            eprint!("{msg}");
+                        }
+                    }
+                }
+                Err(ReadlineError::Interrupted) => continue,
+                Err(_) => break,
+            }
+        }
+        if let Some(h) = &history {
+            let _ = rl.save_history(h);
+        }
+        failures
+    }
+
+    fn piped(&mut self) -> usize {
+        let stdin = std::io::stdin();
+        let mut failures = 0;
+        let mut buffer = String::new();
+        for line in stdin.lock().lines() {
+            let Ok(line) = line else { break };
+            if buffer.is_empty() && line.trim().is_empty() {
+                continue;
+            }
+            buffer += &line;
+            buffer += "\n";
+            if open_braces(&buffer) > 0 {
+                continue;
+            }
+            let entry = std::mem::take(&mut buffer);
+            println!("gw> {}", entry.trim_end().replace('\n', "\n... "));
+            match self.entry(&entry) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(msg) => {
+                    failures += 1;
+                    // Errors go to stdout too, so a transcript reads in order.
+                    print!("{msg}");
+                }
+            }
+            let _ = std::io::stdout().flush();
+        }
+        if !buffer.trim().is_empty() {
+            println!("error: input ended inside an unclosed block");
+            failures += 1;
+        }
+        failures
+    }
+
+    /// Handles one entry. `Ok(false)` means quit; `Err` holds the rendered error.
+    fn entry(&mut self, text: &str) -> Result<bool, String> {
+        let t = text.trim();
+        if let Some(cmd) = t.strip_prefix(':') {
+            return self.command(cmd);
+        }
+        let first = t.split_whitespace().next().unwrap_or("");
+        let name_after = |kw: &str| -> Option<String> {
+            let rest = t.strip_prefix(kw)?.trim_start();
+            let n: String = rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+            (!n.is_empty()).then_some(n)
+        };
+        let def = match first {
+            "use" => Some(Def::Use(t.to_string())),
+            // `learned` components are module-like definitions (issue 4 adds them to the language).
+            "module" | "learned" => name_after(first).map(|n| Def::Module(n, t.to_string())),
+            "let" | "param" | "grid" | "input" => name_after(first).map(|n| Def::Stmt(n, t.to_string())),
+            _ => None,
+        };
+        if let Some(def) = def {
+            let src = self.session.source(Some(&def), "");
+            self.compile(&src)?;
+            let shown = match &def {
+                Def::Stmt(n, _) if first == "let" || first == "param" => Some(n.clone()),
+                _ => None,
+            };
+            self.session.commit(def);
+            *self.names.borrow_mut() = self.session.names();
+            if let Some(n) = shown {
+                let v = self.evaluate(&n)?;
+                println!("{n} = {v}");
+            } else {
+                println!("ok");
+            }
+            return Ok(true);
+        }
+        let v = self.evaluate(t)?;
+        println!("{v}");
+        Ok(true)
+    }
+
+    fn render(&self, e: Error) -> String {
+        match e {
+            Error::Compile(c) => c.render(self.color),
+            other => format!("error: {other}\n"),
+        }
+    }
+
+    fn compile(&self, src: &str) -> Result<Model, String> {
+        Model::from_source("<repl>", src).map_err(|e| self.render(e))
+    }
+
+    fn scene(&self, extra: &str) -> Result<gwml::Scene, String> {
+        let src = self.session.source(None, extra);
+        let model = self.compile(&src)?;
+        model.scene_with(Some(SCENE), Options { precision: self.session.precision }).map_err(|e| self.render(e))
+    }
+
+    /// Value of `expr`, formatted.
+    fn evaluate(&self, expr: &str) -> Result<String, String> {
+        let scene = self.scene(&format!("    output {VALUE} =\n{expr}"))?;
+        let out = scene.bind().forward().map_err(|e| self.render(e))?;
+        let f = scene.ir();
+        let unit = &f.outputs[0].unit;
+        Ok(format_value(out.value(VALUE).map_err(|e| self.render(e))?, f, unit))
+    }
+
+    fn command(&mut self, cmd: &str) -> Result<bool, String> {
+        let (name, rest) = cmd.split_once(char::is_whitespace).map(|(a, b)| (a, b.trim())).unwrap_or((cmd.trim(), ""));
+        match name {
+            "q" | "quit" | "exit" => return Ok(false),
+            "help" | "h" => {
+                for (_, help) in COMMANDS {
+                    println!("  {help}");
+                }
+                println!("  Definitions: let, param, grid, input, module, use. Anything else is evaluated.");
+            }
+            "grad" | "adjoint" => {
+                let (expr, wrt) = rest.rsplit_once(" wrt ").ok_or_else(|| format!("error: usage: :{name} EXPR wrt NAME[, NAME...]\n"))?;
+                let wrt = wrt.trim().trim_start_matches('[').trim_end_matches(']');
+                let scene = self.scene(&format!("    output {VALUE} = {expr}\n    grad {VALUE} wrt [{wrt}]"))?;
+                if name == "adjoint" {
+                    print!("{}", scene.pipeline.optimized);
+                    return Ok(true);
+                }
+                let out = scene.bind().value_and_grad().map_err(|e| self.render(e))?;
+                let f = scene.ir();
+                println!("{}", format_value(out.value(VALUE).map_err(|e| self.render(e))?, f, &f.outputs[0].unit));
+                for (_, p, g) in &out.grads {
+                    let unit = f.params.iter().find(|q| &q.name == p).map(|q| q.unit.as_str()).unwrap_or("1");
+                    println!("  d/d{p} = {g}{}", if unit == "1" { String::new() } else { format!(" per {unit}") });
+                }
+            }
+            "type" => {
+                let scene = self.scene(&format!("    output {VALUE} = {rest}"))?;
+                let f = scene.ir();
+                let o = &f.outputs[0];
+                println!("{} [{}]", f.fmt_ty(f.ty(o.value)), o.unit);
+            }
+            "ir" => print!("{}", self.scene(&format!("    output {VALUE} = {rest}"))?.pipeline.pruned),
+            "clif" => print!("{}", self.scene(&format!("    output {VALUE} = {rest}"))?.forward_kernel().clif),
+            "time" => {
+                let scene = self.scene(&format!("    output {VALUE} = {rest}"))?;
+                let mut run = scene.bind();
+                run.forward().map_err(|e| self.render(e))?;
+                let mut times: Vec<f64> = Vec::new();
+                let start = Instant::now();
+                while times.len() < 5 || (start.elapsed().as_secs_f64() < 0.5 && times.len() < 10_000) {
+                    let t = Instant::now();
+                    run.forward().map_err(|e| self.render(e))?;
+                    times.push(t.elapsed().as_secs_f64());
+                }
+                times.sort_by(f64::total_cmp);
+                println!("median {} over {} runs", fmt_time(times[times.len() / 2]), times.len());
+            }
+            "load" => {
+                let text = std::fs::read_to_string(rest).map_err(|e| format!("error: cannot read {rest}: {e}\n"))?;
+                let program = Program::parse(rest, &text).map_err(|e| e.render(self.color))?;
+                self.session.loaded.retain(|(p, _)| p != rest);
+                self.session.loaded.push((rest.to_string(), text));
+                if let Err(e) = self.compile(&self.session.source(None, "")) {
+                    self.session.loaded.pop();
+                    return Err(e);
+                }
+                let scenes = program.scene_names();
+                println!("loaded {rest}: scenes {}", if scenes.is_empty() { "(none)".into() } else { scenes.join(", ") });
+            }
+            "run" => {
+                let mut parts = rest.split_whitespace();
+                let scene_name = parts.next().ok_or("error: usage: :run SCENE [NAME=VALUE ...]\n")?;
+                let model = self.compile(&self.session.source(None, ""))?;
+                let scene =
+                    model.scene_with(Some(scene_name), Options { precision: self.session.precision }).map_err(|e| self.render(e))?;
+                let mut run = scene.bind();
+                for kv in parts {
+                    let (k, v) = kv.split_once('=').ok_or_else(|| format!("error: expected NAME=VALUE, got `{kv}`\n"))?;
+                    let v: f64 = v.parse().map_err(|_| format!("error: `{v}` is not a number\n"))?;
+                    run.param(k, v).map_err(|e| self.render(e))?;
+                }
+                let has_grads = !scene.ir().grads.is_empty();
+                let out = if has_grads { run.value_and_grad() } else { run.forward() }.map_err(|e| self.render(e))?;
+                let f = scene.ir();
+                for ((n, v), o) in out.values.iter().zip(&f.outputs) {
+                    println!("{n} = {}", format_value(v, f, &o.unit));
+                }
+                for (o, p, g) in &out.grads {
+                    println!("  d{o}/d{p} = {g}");
+                }
+            }
+            "save" => {
+                let src = self.session.source(None, "").replace(&format!("scene {SCENE} {{"), "scene session {");
+                Program::parse(rest, &src).map_err(|e| e.render(self.color))?;
+                std::fs::write(rest, src).map_err(|e| format!("error: cannot write {rest}: {e}\n"))?;
+                println!("saved {rest}");
+            }
+            "plot" => {
+                let (expr, file) = rest.rsplit_once(" to ").ok_or("error: usage: :plot EXPR to FILE.png\n")?;
+                let scene = self.scene(&format!("    output {VALUE} =\n{expr}"))?;
+                let out = scene.bind().forward().map_err(|e| self.render(e))?;
+                let f = scene.ir();
+                let o = &f.outputs[0];
+                let ys: Vec<f64> = match out.value(VALUE).map_err(|e| self.render(e))? {
+                    Value::RealArray(a) => a.clone(),
+                    Value::ComplexArray(a) => a.iter().map(|z| z.norm()).collect(),
+                    _ => return Err("error: :plot needs an array (a value over a grid)\n".into()),
+                };
+                let gwml::compiler::ir::Shape::Grid(g) = f.ty(o.value).shape else { unreachable!("arrays live on grids") };
+                let grid = &f.grids[g.0 as usize];
+                let xs: Vec<f64> = (0..grid.len).map(|i| grid.start + i as f64 * grid.step).collect();
+                let y_label = if o.unit == "1" { expr.trim().to_string() } else { format!("{} [{}]", expr.trim(), o.unit) };
+                crate::plot::line_plot(
+                    std::path::Path::new(file.trim()),
+                    expr.trim(),
+                    &format!("{} [{}]", grid.name, grid.unit),
+                    &y_label,
+                    &xs,
+                    &ys,
+                )
+                .map_err(|e| format!("error: {e}\n"))?;
+                println!("wrote {}", file.trim());
+            }
+            "precision" => {
+                self.session.precision = Some(match rest {
+                    "f64" => Precision::F64,
+                    "f32" => Precision::F32,
+                    other => return Err(format!("error: unknown precision `{other}`; use f32 or f64\n")),
+                });
+                println!("precision {rest}");
+            }
+            "defs" => {
+                for u in &self.session.uses {
+                    println!("{u}");
+                }
+                for (_, s) in self.session.modules.iter().chain(&self.session.stmts) {
+                    println!("{s}");
+                }
+            }
+            other => {
+                let names: Vec<&str> = COMMANDS.iter().map(|c| &c.0[1..]).collect();
+                let hint =
+                    gwml::compiler::diagnostics::did_you_mean(other, names).map(|s| format!("; did you mean :{s}?")).unwrap_or_default();
+                return Err(format!("error: unknown command :{other}{hint} (:help lists them)\n"));
+            }
+        }
+        Ok(true)
+    }
+}
+
+fn fmt_time(s: f64) -> String {
+    if s < 1e-6 {
+        format!("{:.1} ns", s * 1e9)
+    } else if s < 1e-3 {
+        format!("{:.2} µs", s * 1e6)
+    } else {
+        format!("{:.3} ms", s * 1e3)
+    }
+}
+
+fn unit_suffix(unit: &str) -> String {
+    if unit == "1" {
+        String::new()
+    } else {
+        format!(" [{unit}]")
+    }
+}
+
+/// Scalars as numbers; arrays as type, length, ends and range.
+fn format_value(v: &Value, f: &Function, unit: &str) -> String {
+    let u = unit_suffix(unit);
+    let grid = f.outputs.first().map(|o| f.fmt_ty(f.ty(o.value))).unwrap_or_default();
+    match v {
+        Value::Real(x) => format!("{x}{u}"),
+        Value::Complex(z) => format!("{} {} {}i{u}", z.re, if z.im < 0.0 { '-' } else { '+' }, z.im.abs()),
+        Value::RealArray(a) => {
+            let (lo, hi) = a.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| (l.min(*x), h.max(*x)));
+            let head: Vec<String> = a.iter().take(3).map(|x| format!("{x:.6e}")).collect();
+            let tail: Vec<String> = a.iter().rev().take(2).rev().map(|x| format!("{x:.6e}")).collect();
+            format!("{grid}, {} values{u}: {} … {}; min {lo:.6e}, max {hi:.6e}", a.len(), head.join(", "), tail.join(", "))
+        }
+        Value::ComplexArray(a) => {
+            let c = |z: &num_complex::Complex64| format!("{:.4e}{:+.4e}i", z.re, z.im);
+            let (lo, hi) = a.iter().map(|z| z.norm()).fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| (l.min(x), h.max(x)));
+            let head: Vec<String> = a.iter().take(2).map(c).collect();
+            let last = a.last().map(c).unwrap_or_default();
+            format!("{grid}, {} values{u}: {} … {last}; |z| from {lo:.6e} to {hi:.6e}", a.len(), head.join(", "))
+        }
+    }
+}

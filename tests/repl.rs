@@ -1,0 +1,120 @@
+//! The REPL, driven through piped standard input (golden transcripts) and
+//! through a pseudo-terminal (line editing: completion, multi-line, Ctrl-C).
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+fn piped(input: &str) -> (bool, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gwml"))
+        .arg("repl")
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("gwml starts");
+    child.stdin.take().expect("stdin").write_all(input.as_bytes()).expect("write");
+    let out = child.wait_with_output().expect("gwml exits");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+#[test]
+fn transcript_definitions_values_and_gradients() {
+    let (ok, out) = piped(
+        "let a = 2.0 * pi
+param x = 0.5
+sin(x) * a
+:grad sin(x) * x wrt x
+grid f = frequencies(from: 20 Hz, to: 24 Hz, step: 1 Hz)
+f * 2.0 s
+:type f * 2.0
+module sq(y) {
+    y * y
+}
+sq(x) + 1.0
+cis(x)
+let a = 3.0
+a * x
+:precision f32
+sum(f / 1 Hz)
+",
+    );
+    assert!(ok, "{out}");
+    insta::assert_snapshot!(out);
+}
+
+#[test]
+fn errors_keep_the_session_and_set_the_exit_status() {
+    let (ok, out) = piped("let a = 1.5\nfoo + a\nlet b = a +\na * 2.0\n:bogus\n");
+    assert!(!ok, "a failed line makes the exit status non-zero");
+    insta::assert_snapshot!(out);
+}
+
+#[test]
+fn load_run_save_and_inspect() {
+    let dir = std::env::temp_dir().join(format!("gwml-repl-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let saved = dir.join("session.gw");
+    let png = dir.join("plot.png");
+    let (ok, out) = piped(&format!(
+        ":load examples/chirp_fit.gw
+:run chirp_fit mc=30 tc=0.002 phic=0.3
+param k = 2.0
+grid t = times(rate: 64 Hz, duration: 1 s)
+let wave = sin(2.0 * pi * 3 Hz * t) * k
+:plot wave to {}
+:ir sum(wave)
+:adjoint sum(wave) wrt k
+:clif k * 2.0
+:time k * 2.0
+:save {}
+",
+        png.display(),
+        saved.display()
+    ));
+    assert!(ok, "{out}");
+    assert!(out.contains("loss = 0"), "the chirp at its true parameters has zero loss: {out}");
+    assert!(out.contains("dloss/dmc = 0"), "{out}");
+    assert!(out.contains("= sum %"), "IR dump: {out}");
+    assert!(out.contains("grad d__value/dk"), "adjoint dump: {out}");
+    assert!(out.contains("function") && out.contains("return"), "CLIF dump: {out}");
+    assert!(out.contains("median"), "{out}");
+    let png_bytes = std::fs::read(&png).expect("plot written");
+    assert_eq!(&png_bytes[1..4], b"PNG");
+    let text = std::fs::read_to_string(&saved).expect("session saved");
+    gwml::compile_str("session.gw", &text).expect("the saved session compiles");
+    assert!(text.contains("let wave") && text.contains("param k"));
+}
+
+#[test]
+fn terminal_completion_multiline_and_ctrl_c() {
+    let bin = env!("CARGO_BIN_EXE_gwml");
+    let home = std::env::temp_dir().join(format!("gwml-pty-{}", std::process::id()));
+    std::fs::create_dir_all(&home).unwrap();
+    let mut cmd = Command::new(bin);
+    cmd.arg("repl").env("XDG_DATA_HOME", &home).env("TERM", "xterm");
+    let mut p = rexpect::session::spawn_command(cmd, Some(10_000)).expect("spawn in a pty");
+    p.exp_string("gw> ").unwrap();
+    // Completion: `let alpha`, then `alp<TAB>` completes the name.
+    p.send_line("let alpha = 4.0").unwrap();
+    p.exp_string("alpha = 4").unwrap();
+    p.send("alp\t * 2.0").unwrap();
+    p.send_line("").unwrap();
+    p.exp_string("8").unwrap();
+    // Multi-line: the line continues while a brace is open.
+    p.send_line("module twice(y) {").unwrap();
+    p.send_line("  y * 2.0 }").unwrap();
+    p.exp_string("ok").unwrap();
+    p.send_line("twice(alpha)").unwrap();
+    p.exp_string("8").unwrap();
+    // Ctrl-C cancels the line being typed; the session goes on.
+    p.send("1 + ").unwrap();
+    p.send_control('c').unwrap();
+    p.exp_string("gw> ").unwrap();
+    p.send_line("alpha + 1.0").unwrap();
+    p.exp_string("5").unwrap();
+    // Ctrl-D leaves.
+    p.send_control('d').unwrap();
+    p.exp_eof().unwrap();
+    assert!(home.join("gwml/history").exists(), "history is saved under the data directory");
+}
