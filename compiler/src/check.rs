@@ -811,6 +811,22 @@ impl<'a> Checker<'a> {
         if scope.poisoned.contains(n) {
             return None;
         }
+        if let Some((_, usage)) = BUILTINS.iter().find(|b| b.0 == n) {
+            self.error(
+                Diagnostic::error(span, format!("`{n}` is a function, not a value"))
+                    .with_label("used without arguments")
+                    .with_help(format!("call it: {usage}")),
+            );
+            return None;
+        }
+        if self.modules.contains_key(n) {
+            self.error(
+                Diagnostic::error(span, format!("`{n}` is a module, not a value"))
+                    .with_label("used without arguments")
+                    .with_help(format!("call it: `{n}(...)`")),
+            );
+            return None;
+        }
         if scope.kind == ScopeKind::Const {
             self.error(
                 Diagnostic::error(span, format!("`{n}` is not a constant"))

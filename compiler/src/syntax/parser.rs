@@ -205,9 +205,69 @@ pub fn parse(text: &str, file: FileId) -> (SourceFileAst, Vec<Diagnostic>) {
     let input = tokens.as_slice().map(eoi, |(t, s)| (t, s));
     let (items, errs) = item().repeated().collect::<Vec<_>>().then_ignore(end()).parse(input).into_output_errors();
     for e in errs {
-        diags.push(syntax_diagnostic(&e));
+        diags.push(explain_unclosed(syntax_diagnostic(&e), &e, text));
     }
     (SourceFileAst { items: items.unwrap_or_default().into_iter().flatten().collect() }, diags)
+}
+
+/// Statement keywords, which the parser lists when an expression ends early.
+const STATEMENT_WORDS: &[&str] = &["`grad`", "`grid`", "`input`", "`let`", "`output`", "`param`"];
+
+/// Replaces the generic help of common mistakes with a specific one: an
+/// opening parenthesis never closed on its line, and an operator that
+/// neither continues an expression nor starts a statement.
+fn explain_unclosed(d: Diagnostic, e: &Rich<'_, Token, Span>, text: &str) -> Diagnostic {
+    let span = *e.span();
+    let line_end = text[span.start.min(text.len())..].find('\n').map_or(text.len(), |i| span.start + i);
+    match e.found() {
+        Some(Token::Op("(")) | Some(Token::CallOpen) => {
+            let rest = &text[span.start..line_end];
+            let depth = rest.split("//").next().unwrap_or("").chars().fold(0i32, |d, c| match c {
+                '(' => d + 1,
+                ')' => d - 1,
+                _ => d,
+            });
+            if depth > 0 {
+                return Diagnostic::error(span, "unclosed `(`")
+                    .with_label("this parenthesis is never closed")
+                    .with_help("add the missing `)`");
+            }
+            d
+        }
+        Some(Token::Op(op))
+            if ["*", "/", "^", "+", "<", ">", "<=", ">=", "==", "!="].contains(op)
+                && d.help.as_deref().is_some_and(|h| STATEMENT_WORDS.iter().any(|w| h.contains(w))) =>
+        {
+            Diagnostic::error(span, format!("`{op}` is missing an operand"))
+                .with_label(format!("`{op}` needs a value on each side"))
+                .with_help("remove the extra operator, or write the missing operand")
+        }
+        // A statement keyword where an expression was still open: look for a
+        // `(` left unclosed on the line before.
+        Some(Token::Kw(_)) => {
+            let before = &text[..span.start.min(text.len())];
+            let line_start = before.trim_end().rfind('\n').map_or(0, |i| i + 1);
+            let line = before[line_start..].split("//").next().unwrap_or("");
+            let mut open: Vec<usize> = Vec::new();
+            for (i, c) in line.char_indices() {
+                match c {
+                    '(' => open.push(i),
+                    ')' => {
+                        open.pop();
+                    }
+                    _ => {}
+                }
+            }
+            match open.first() {
+                Some(&i) => {
+                    let at = Span::new(span.file, line_start + i..line_start + i + 1);
+                    Diagnostic::error(at, "unclosed `(`").with_label("this parenthesis is never closed").with_help("add the missing `)`")
+                }
+                None => d,
+            }
+        }
+        _ => d,
+    }
 }
 
 fn syntax_diagnostic(e: &Rich<'_, Token, Span>) -> Diagnostic {
