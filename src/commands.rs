@@ -1,6 +1,6 @@
 //! The `gwml` subcommands. Each returns `Err(message)` for the user.
 
-use crate::{CompileArgs, Emit, Format, PrecisionArg, RunArgs};
+use crate::{CompileArgs, Emit, FitArgs, Format, OptimizerArg, PrecisionArg, RunArgs};
 use gwml::compiler::ir::Precision;
 use gwml::compiler::syntax::print_ast;
 use gwml::compiler::Options;
@@ -218,4 +218,192 @@ fn summary(len: usize, xs: impl Iterator<Item = f64> + Clone, complex: bool) -> 
     let max = xs.fold(f64::NEG_INFINITY, f64::max);
     let what = if complex { "complex array, |z|" } else { "array" };
     format!("{what} of {len}: min {min:.6e}, max {max:.6e} (write it with --output NAME=FILE.npy)")
+}
+
+/// Binds `--set` and `--input` values to a run (as `gwml run` does).
+fn bind_args(run: &mut gwml::Run, set: &[String], input: &[String]) -> Result<(), String> {
+    for s in set {
+        let (name, value) = split_pair(s, "--set")?;
+        let v: f64 = value.parse().map_err(|_| format!("error: --set {name}: `{value}` is not a number"))?;
+        run.param(name, v).map_err(render)?;
+    }
+    for s in input {
+        let (name, path) = split_pair(s, "--input")?;
+        let data = gwml::npy::read(Path::new(path)).map_err(render)?;
+        if data.complex {
+            run.input_complex(name, &data.values).map_err(render)?;
+        } else {
+            let re: Vec<f64> = data.values.iter().map(|z| z.re).collect();
+            run.input_real(name, &re).map_err(render)?;
+        }
+    }
+    Ok(())
+}
+
+/// `gwml fit`.
+pub fn fit(a: FitArgs) -> Result<(), String> {
+    use gwml_runtime::fit::{fit_run, Optimizer, Settings};
+    let model = Model::from_file(&a.file).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.precision)).map_err(render)?;
+    let mut run = scene.bind();
+    bind_args(&mut run, &a.set, &a.input)?;
+    let optimizer = match a.optimizer {
+        OptimizerArg::Lbfgs => Optimizer::Lbfgs,
+        OptimizerArg::Adam => Optimizer::Adam,
+    };
+    let mut settings = Settings::new(optimizer);
+    if let Some(n) = a.steps {
+        settings.max_steps = n;
+    }
+    if let Some(lr) = a.learning_rate {
+        if !(lr.is_finite() && lr > 0.0) {
+            return Err(format!("error: --learning-rate must be a positive number, got {lr}"));
+        }
+        settings.learning_rate = lr;
+    }
+    let every = match optimizer {
+        Optimizer::Lbfgs => 10,
+        Optimizer::Adam => 100,
+    };
+    let f = scene.ir();
+    let t0 = Instant::now();
+    let quiet = a.quiet;
+    // The free params' names, for the progress lines.
+    let mut free_names: Vec<String> = Vec::new();
+    if let Some(oi) = a.output.as_deref().map_or_else(
+        || gwml_runtime::fit::candidate_outputs(&run).first().and_then(|n| f.outputs.iter().position(|o| &o.name == n)),
+        |n| f.outputs.iter().position(|o| o.name == n),
+    ) {
+        free_names = f.grads.iter().filter(|g| g.output == oi).map(|g| f.params[g.param].name.clone()).collect();
+    }
+    let progress = |p: &gwml_runtime::fit::Progress| {
+        if quiet || (!p.step.is_multiple_of(every) && p.step != 1) {
+            return;
+        }
+        let xs: Vec<String> = free_names.iter().zip(p.x).map(|(n, x)| format!("{n}={x:.6e}")).collect();
+        eprintln!(
+            "step {:5}  loss {:.10e}  |grad_u| {:.3e}  {}  ({:.1} s)",
+            p.step,
+            p.loss,
+            p.grad_norm,
+            xs.join(" "),
+            t0.elapsed().as_secs_f64()
+        );
+    };
+    let r = fit_run(&mut run, a.output.as_deref(), &settings, progress).map_err(render)?;
+    let opt_name = match optimizer {
+        Optimizer::Lbfgs => "lbfgs",
+        Optimizer::Adam => "adam",
+    };
+    let names: Vec<&str> = r.free.iter().map(|p| p.name.as_str()).collect();
+    let m = &r.minimum;
+    if a.format == Format::Json {
+        let cov = r.covariance.as_ref().ok();
+        let mut params = Map::new();
+        for (i, p) in r.free.iter().enumerate() {
+            params.insert(
+                p.name.clone(),
+                json!({
+                    "value": m.x[i],
+                    "sigma": cov.map(|c| c.sigma[i]),
+                    "start": p.start,
+                    "unit": p.unit,
+                    "bounds": p.bounds.map(|(lo, hi)| json!([lo, hi])),
+                    "grad": m.grad[i],
+                }),
+            );
+        }
+        let fixed: Map<String, serde_json::Value> = r.fixed.iter().map(|(n, v)| (n.clone(), json!(v))).collect();
+        let fisher = match &r.covariance {
+            Ok(c) => json!({
+                "params": names,
+                "matrix": r.fisher,
+                "steps": r.fisher_steps,
+                "positive_definite": true,
+                "covariance": c.covariance,
+                "correlation": c.correlation,
+                "condition": c.condition,
+            }),
+            Err(e) => json!({
+                "params": names,
+                "matrix": r.fisher,
+                "steps": r.fisher_steps,
+                "positive_definite": false,
+                "error": e.to_string(),
+                "eigenvalues": match e {
+                    gwml_runtime::fit::FisherError::NotPositiveDefinite { eigenvalues } => json!(eigenvalues),
+                    gwml_runtime::fit::FisherError::NotFinite => serde_json::Value::Null,
+                },
+            }),
+        };
+        let j = json!({
+            "scene": f.name,
+            "output": r.output,
+            "optimizer": opt_name,
+            "steps": m.steps,
+            "evaluations": m.evaluations,
+            "stop": m.stop.to_string(),
+            "converged": m.stop.converged(),
+            "start_loss": r.start_loss,
+            "loss": m.loss,
+            "params": params,
+            "fixed": fixed,
+            "fisher": fisher,
+        });
+        println!("{}", serde_json::to_string_pretty(&j).expect("JSON of numbers"));
+        return Ok(());
+    }
+    println!(
+        "scene {}: minimised `{}` over {} param{} with {}",
+        f.name,
+        r.output,
+        r.free.len(),
+        plural(r.free.len()),
+        match optimizer {
+            Optimizer::Lbfgs => "L-BFGS",
+            Optimizer::Adam => "Adam",
+        }
+    );
+    println!("stopped after {} step{} ({} evaluations): {}", m.steps, plural(m.steps), m.evaluations, m.stop);
+    println!("{} = {} (start {})", r.output, num(m.loss), num(r.start_loss));
+    let w = names.iter().map(|n| n.len()).max().unwrap_or(0);
+    match &r.covariance {
+        Ok(c) => {
+            println!("estimate (± 1σ from the Fisher matrix, the Hessian of `{}`):", r.output);
+            for (i, p) in r.free.iter().enumerate() {
+                println!("  {:w$} = {} ± {:.3e} {}", p.name, num(m.x[i]), c.sigma[i], unit(&p.unit));
+            }
+            println!("correlation:");
+            let head: Vec<String> = names.iter().map(|n| format!("{n:>8}")).collect();
+            println!("  {:w$} {}", "", head.join(""));
+            for (i, n) in names.iter().enumerate() {
+                let row: Vec<String> = c.correlation[i].iter().map(|v| format!("{v:8.3}")).collect();
+                println!("  {n:w$} {}", row.join(""));
+            }
+        }
+        Err(e) => {
+            println!("estimate:");
+            for (i, p) in r.free.iter().enumerate() {
+                println!("  {:w$} = {} {}", p.name, num(m.x[i]), unit(&p.unit));
+            }
+            println!("no uncertainties: {e}");
+        }
+    }
+    if !r.fixed.is_empty() {
+        let fixed: Vec<String> = r.fixed.iter().map(|(n, v)| format!("{n} = {}", num(*v))).collect();
+        println!("fixed: {}", fixed.join(", "));
+    }
+    if !m.stop.converged() {
+        println!("warning: the optimiser did not converge; raise --steps or start closer (--set)");
+    }
+    Ok(())
+}
+
+/// A number in plain notation when that is short, scientific otherwise.
+fn num(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
 }

@@ -23,6 +23,9 @@ enum Command {
     Compile(CompileArgs),
     /// Evaluate a scene's outputs (and gradients with --grad).
     Run(RunArgs),
+    /// Minimise a scene's scalar loss over the params of its `grad` statement
+    /// (within their bounds) and report Fisher-matrix uncertainties.
+    Fit(FitArgs),
     /// An interactive session: define, evaluate, differentiate, inspect, time.
     /// Reads piped standard input line by line (exit status 1 if any line failed).
     Repl,
@@ -104,11 +107,57 @@ pub struct RunArgs {
     pub precision: Option<PrecisionArg>,
 }
 
+/// The optimiser `fit` runs.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum OptimizerArg {
+    /// Limited-memory BFGS with a backtracking (Armijo) line search.
+    Lbfgs,
+    /// Adam with a cosine-decayed learning rate.
+    Adam,
+}
+
+#[derive(clap::Args)]
+pub struct FitArgs {
+    /// The .gw file.
+    pub file: PathBuf,
+    /// Scene to fit (optional when the file has one scene).
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Set a param (a starting value for free params, the value for the others), in its declared unit: `--set mc=30`.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`.
+    #[arg(long = "input", value_name = "NAME=PATH.npy")]
+    pub input: Vec<String>,
+    /// The real scalar output to minimise (needed when several have gradients).
+    #[arg(long, value_name = "NAME")]
+    pub output: Option<String>,
+    /// The optimiser.
+    #[arg(long, value_enum, default_value = "lbfgs")]
+    pub optimizer: OptimizerArg,
+    /// Maximum number of iterations [default: 500 for lbfgs, 3000 for adam].
+    #[arg(long, value_name = "N")]
+    pub steps: Option<usize>,
+    /// Adam's initial learning rate in the unconstrained variables [default: 0.02].
+    #[arg(long, value_name = "RATE")]
+    pub learning_rate: Option<f64>,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: Format,
+    /// Do not print progress lines (they go to standard error).
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Override the scene's precision knob.
+    #[arg(long, value_enum)]
+    pub precision: Option<PrecisionArg>,
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Compile(a) => commands::compile(a),
         Command::Run(a) => commands::run(a),
+        Command::Fit(a) => commands::fit(a),
         Command::Repl => {
             let failures = repl::run();
             return if failures == 0 { ExitCode::SUCCESS } else { ExitCode::FAILURE };

@@ -516,7 +516,7 @@ fn unit_suffix(unit: &str) -> String {
 /// Scalars as numbers; arrays as type, length, ends and range.
 fn format_value(v: &Value, f: &Function, unit: &str) -> String {
     let u = unit_suffix(unit);
-    let grid = f.outputs.first().map(|o| f.fmt_ty(f.ty(o.value))).unwrap_or_default();
+    let grid = f.outputs.first().map(|o| format!("{} {}", f.fmt_ty(f.ty(o.value)), f.precision)).unwrap_or_default();
     match v {
         Value::Real(x) => format!("{x}{u}"),
         Value::Complex(z) => format!("{} {} {}i{u}", z.re, if z.im < 0.0 { '-' } else { '+' }, z.im.abs()),

@@ -94,25 +94,36 @@ fn terminal_completion_multiline_and_ctrl_c() {
     let mut cmd = Command::new(bin);
     cmd.arg("repl").env("XDG_DATA_HOME", &home).env("TERM", "xterm");
     let mut p = rexpect::session::spawn_command(cmd, Some(10_000)).expect("spawn in a pty");
-    p.exp_string("gw> ").unwrap();
+    // Wait for the prompt, then a moment: the editor prints the prompt before
+    // it puts the terminal in raw mode, and keys sent earlier can be lost.
+    let prompt = |p: &mut rexpect::session::PtySession| {
+        p.exp_string("gw> ").unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    };
+    prompt(&mut p);
     // Completion: `let alpha`, then `alp<TAB>` completes the name.
     p.send_line("let alpha = 4.0").unwrap();
     p.exp_string("alpha = 4").unwrap();
+    prompt(&mut p);
     p.send("alp\t * 2.0").unwrap();
     p.send_line("").unwrap();
     p.exp_string("8").unwrap();
+    prompt(&mut p);
     // Multi-line: the line continues while a brace is open.
     p.send_line("module twice(y) {").unwrap();
     p.send_line("  y * 2.0 }").unwrap();
     p.exp_string("ok").unwrap();
+    prompt(&mut p);
     p.send_line("twice(alpha)").unwrap();
     p.exp_string("8").unwrap();
+    prompt(&mut p);
     // Ctrl-C cancels the line being typed; the session goes on.
     p.send("1 + ").unwrap();
     p.send_control('c').unwrap();
-    p.exp_string("gw> ").unwrap();
+    prompt(&mut p);
     p.send_line("alpha + 1.0").unwrap();
     p.exp_string("5").unwrap();
+    prompt(&mut p);
     // Ctrl-D leaves.
     p.send_control('d').unwrap();
     p.exp_eof().unwrap();

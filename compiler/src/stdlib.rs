@@ -3,8 +3,10 @@
 
 /// `(name, source)` of every stdlib file; `use std::NAME` loads `NAME`.
 pub const FILES: &[(&str, &str)] = &[
+    ("antenna", include_str!("../../stdlib/antenna.gw")),
     ("chirp", include_str!("../../stdlib/chirp.gw")),
     ("detector", include_str!("../../stdlib/detector.gw")),
+    ("psd", include_str!("../../stdlib/psd.gw")),
     ("taylorf2", include_str!("../../stdlib/taylorf2.gw")),
 ];
 

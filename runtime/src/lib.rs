@@ -11,6 +11,8 @@
 //! # Ok::<(), gwml_runtime::Error>(())
 //! ```
 
+pub mod fit;
+pub mod noise;
 pub mod npy;
 
 use gwml_compiler::codegen::{self, BufferKind, Kernel};
