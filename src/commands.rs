@@ -1,6 +1,6 @@
 //! The `gwml` subcommands. Each returns `Err(message)` for the user.
 
-use crate::{CompileArgs, Emit, FitArgs, Format, OptimizerArg, PrecisionArg, RunArgs};
+use crate::{BindArgs, CompileArgs, Emit, FitArgs, Format, OptimizerArg, PrecisionArg, RunArgs};
 use gwml::compiler::ir::Precision;
 use gwml::compiler::syntax::print_ast;
 use gwml::compiler::Options;
@@ -121,21 +121,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     let model = Model::from_file(&a.file).map_err(render)?;
     let scene = model.scene_with(a.scene.as_deref(), options(a.precision)).map_err(render)?;
     let mut run = scene.bind();
-    for s in &a.set {
-        let (name, value) = split_pair(s, "--set")?;
-        let v: f64 = value.parse().map_err(|_| format!("error: --set {name}: `{value}` is not a number"))?;
-        run.param(name, v).map_err(render)?;
-    }
-    for s in &a.input {
-        let (name, path) = split_pair(s, "--input")?;
-        let data = gwml::npy::read(Path::new(path)).map_err(render)?;
-        if data.complex {
-            run.input_complex(name, &data.values).map_err(render)?;
-        } else {
-            let re: Vec<f64> = data.values.iter().map(|z| z.re).collect();
-            run.input_real(name, &re).map_err(render)?;
-        }
-    }
+    bind_args(&mut run, &a.bind)?;
     let out = if a.grad { run.value_and_grad() } else { run.forward() }.map_err(render)?;
     let mut written = Vec::new();
     for s in &a.output {
@@ -221,13 +207,13 @@ fn summary(len: usize, xs: impl Iterator<Item = f64> + Clone, complex: bool) -> 
 }
 
 /// Binds `--set` and `--input` values to a run (as `gwml run` does).
-fn bind_args(run: &mut gwml::Run, set: &[String], input: &[String]) -> Result<(), String> {
-    for s in set {
+fn bind_args(run: &mut gwml::Run, bind: &BindArgs) -> Result<(), String> {
+    for s in &bind.set {
         let (name, value) = split_pair(s, "--set")?;
         let v: f64 = value.parse().map_err(|_| format!("error: --set {name}: `{value}` is not a number"))?;
         run.param(name, v).map_err(render)?;
     }
-    for s in input {
+    for s in &bind.input {
         let (name, path) = split_pair(s, "--input")?;
         let data = gwml::npy::read(Path::new(path)).map_err(render)?;
         if data.complex {
@@ -246,7 +232,7 @@ pub fn fit(a: FitArgs) -> Result<(), String> {
     let model = Model::from_file(&a.file).map_err(render)?;
     let scene = model.scene_with(a.scene.as_deref(), options(a.precision)).map_err(render)?;
     let mut run = scene.bind();
-    bind_args(&mut run, &a.set, &a.input)?;
+    bind_args(&mut run, &a.bind)?;
     let optimizer = match a.optimizer {
         OptimizerArg::Lbfgs => Optimizer::Lbfgs,
         OptimizerArg::Adam => Optimizer::Adam,

@@ -80,6 +80,17 @@ pub struct CompileArgs {
     pub stats: bool,
 }
 
+/// Param values and input data bound before running.
+#[derive(clap::Args)]
+pub struct BindArgs {
+    /// Set a param, in its declared unit (for `fit`, the starting value of a free param): `--set mc=30`.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`.
+    #[arg(long = "input", value_name = "NAME=PATH.npy")]
+    pub input: Vec<String>,
+}
+
 #[derive(clap::Args)]
 pub struct RunArgs {
     /// The .gw file.
@@ -87,12 +98,8 @@ pub struct RunArgs {
     /// Scene to run (optional when the file has one scene).
     #[arg(long)]
     pub scene: Option<String>,
-    /// Set a param, in its declared unit: `--set mc=30`.
-    #[arg(long = "set", value_name = "NAME=VALUE")]
-    pub set: Vec<String>,
-    /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`.
-    #[arg(long = "input", value_name = "NAME=PATH.npy")]
-    pub input: Vec<String>,
+    #[command(flatten)]
+    pub bind: BindArgs,
     /// Write an array output to a .npy file: `--output h=h.npy`.
     #[arg(long = "output", value_name = "NAME=PATH.npy")]
     pub output: Vec<String>,
@@ -123,12 +130,8 @@ pub struct FitArgs {
     /// Scene to fit (optional when the file has one scene).
     #[arg(long)]
     pub scene: Option<String>,
-    /// Set a param (a starting value for free params, the value for the others), in its declared unit: `--set mc=30`.
-    #[arg(long = "set", value_name = "NAME=VALUE")]
-    pub set: Vec<String>,
-    /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`.
-    #[arg(long = "input", value_name = "NAME=PATH.npy")]
-    pub input: Vec<String>,
+    #[command(flatten)]
+    pub bind: BindArgs,
     /// The real scalar output to minimise (needed when several have gradients).
     #[arg(long, value_name = "NAME")]
     pub output: Option<String>,

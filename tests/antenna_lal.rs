@@ -58,54 +58,16 @@ scene tensor {
 }
 ";
 
-/// The fixture with every JSON number turned into a string holding its
-/// decimal text, so that `str::parse::<f64>` (correctly rounded) reads it:
-/// serde_json's default float parser (no `float_roundtrip`) can be one ulp
-/// off.
+/// The fixture (serde_json's `float_roundtrip` feature reads every number exactly).
 fn load_fixture() -> Json {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/lal/antenna_patterns.json");
     let text = std::fs::read_to_string(path).expect("fixture is readable");
-    serde_json::from_str(&quote_numbers(&text)).expect("valid JSON")
+    serde_json::from_str(&text).expect("valid JSON")
 }
 
-fn quote_numbers(text: &str) -> String {
-    let mut out = String::with_capacity(text.len() + text.len() / 4);
-    let mut chars = text.chars().peekable();
-    let (mut in_string, mut escaped) = (false, false);
-    while let Some(c) = chars.next() {
-        if in_string {
-            out.push(c);
-            if escaped {
-                escaped = false;
-            } else if c == '\\' {
-                escaped = true;
-            } else if c == '"' {
-                in_string = false;
-            }
-        } else if c == '"' {
-            in_string = true;
-            out.push(c);
-        } else if c == '-' || c.is_ascii_digit() {
-            out.push('"');
-            out.push(c);
-            while let Some(&d) = chars.peek() {
-                if !(d.is_ascii_digit() || "+-.eE".contains(d)) {
-                    break;
-                }
-                out.push(d);
-                chars.next();
-            }
-            out.push('"');
-        } else {
-            out.push(c);
-        }
-    }
-    out
-}
-
-/// A number of the fixture (quoted by `quote_numbers`).
+/// A number of the fixture.
 fn num(j: &Json) -> f64 {
-    j.as_str().and_then(|s| s.parse().ok()).unwrap_or_else(|| panic!("a number, found {j}"))
+    j.as_f64().unwrap_or_else(|| panic!("a number, found {j}"))
 }
 
 /// Evaluates `scene` with the given params; returns a reader of scalar outputs.
