@@ -166,7 +166,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     if !out.params.is_empty() {
         println!("params:");
         for ((n, v), p) in out.params.iter().zip(&f.params) {
-            println!("  {n:w$} = {v} {}", unit(&p.unit));
+            println!("{}", format!("  {n:w$} = {v} {}", unit(&p.unit)).trim_end());
         }
     }
     println!("outputs:");
@@ -178,14 +178,15 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             Value::RealArray(a) => summary(a.len(), a.iter().copied(), false),
             Value::ComplexArray(a) => summary(a.len(), a.iter().map(|z| z.norm()), true),
         };
-        println!("  {n:w$} = {text} {}{file}", unit(&o.unit));
+        println!("{}", format!("  {n:w$} = {text} {}{file}", unit(&o.unit)).trim_end());
     }
     if !out.grads.is_empty() {
         println!("gradients:");
         let gw = out.grads.iter().map(|(o, p, _)| o.len() + p.len() + 8).max().unwrap_or(0);
         for ((o, p, g), pi) in out.grads.iter().zip(f.grads.iter().map(|g| &f.params[g.param])) {
             let label = format!("d{o}/d{p}");
-            println!("  {label:gw$} = {g} {}", if pi.unit == "1" { String::new() } else { format!("per {}", pi.unit) });
+            let per = if pi.unit == "1" { String::new() } else { format!("per {}", pi.unit) };
+            println!("{}", format!("  {label:gw$} = {g} {per}").trim_end());
         }
     }
     Ok(())
