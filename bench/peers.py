@@ -1,0 +1,231 @@
+#!/usr/bin/env python3
+"""Side-by-side peer timing of the standard workload W1: gwml vs LALSimulation vs ripplegw (JAX).
+
+W1: TaylorF2 3.5PN, m1 = 36, m2 = 29 Msun, non-spinning, 400 Mpc, 20..1024 Hz
+at df = 1/8 Hz (8,033 bins), float64, one thread.
+
+Measured (median of --reps calls after warm-up, wall clock):
+  forward         gwml: `w1_strain` scene, complex strain out (benches/taylorf2.rs)
+                  LAL:  lalsimulation.SimInspiralChooseFDWaveform(..., TaylorF2),
+                        f_min = 20, f_max = 1024 (as scripts/lal_fixtures.py), f_ref = 0,
+                        default (highest, 3.5PN) phase order, Newtonian amplitude
+                        (LAL fills a 0..1024 Hz series of 8,193 bins, 8,033 nonzero)
+                  ripple: jax.jit of ripplegw's gen_TaylorF2 (the function API in
+                        ripplegw/waveforms/cbc/Taylor/TaylorF2.py; lambdas = 0),
+                        block_until_ready
+  value_and_grad  L = 0.5 (d-h|d-h) = 0.5 * 4 df sum |d-h|^2 / S(f), w.r.t.
+                  (Mc, q, tc, phic); gwml: fused kernel; ripple:
+                  jax.jit(jax.value_and_grad(L)) over a 4-vector (Mc, q, tc, phic);
+                  ripple is parameterised by eta, so L converts eta = q/(1+q)^2
+                  inside the jitted function (the gradient is w.r.t. q, as gwml's).
+                  LAL has no gradient.
+  S(f)            the toy PSD of examples/taylorf2_fit.gw: 1e-47 (y^-4 + 2 + 2 y^2),
+                  y = f / 150 Hz, precomputed once as an array (gwml folds it into a
+                  table at scene compile time, the same footing).
+  data d          each code's own model at the true params (Mc = 28.0956, q = 29/36,
+                  tc = 0, phic = 0); evaluation point Mc = 28.1, q = 0.8,
+                  tc = 0.0005 s, phic = 0.1.
+  grid            the frequency array is a closure constant of the jitted JAX
+                  functions (gwml's grid is a compile-time constant too).
+
+Differences that remain (stated, not fixed): gwml's amplitude is zero above the
+Schwarzschild ISCO (67.6 Hz here; every bin is still evaluated), LAL with
+f_max = 1024 and ripple have no cut; ripple evaluates the tidal phase terms
+(with lambda = 0) and its own f_ref = 20 Hz constant. So loss values differ
+between gwml and ripple; timings are of the same grid and arithmetic scale.
+
+JAX compilation (trace + XLA compile, the first call) is excluded from the
+medians and reported separately; so is gwml's scene compilation.
+
+Setup (a venv OUTSIDE the repository; nothing is created inside it):
+
+    python3 -m venv /work/venv-peers
+    /work/venv-peers/bin/pip install lalsuite ripplegw "jax[cpu]" numpy
+
+(measured with lalsuite 7.26.16, ripplegw 0.4.1, jax/jaxlib 0.10.2, numpy 2.4.6)
+
+Run (from the repository root):
+
+    taskset -c 0 env OMP_NUM_THREADS=1 \\
+      XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" \\
+      /work/venv-peers/bin/python bench/peers.py
+
+The script sets those variables itself (before importing jax) and pins itself
+and its children to one CPU with os.sched_setaffinity, so a plain
+`/work/venv-peers/bin/python bench/peers.py` is equivalent. It then runs
+`cargo bench --bench taylorf2` (pinned to the same CPU), or reads that
+bench's output from a file given with --gwml-output, and prints the table.
+"""
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+
+# One thread, before numpy/jax/lal are imported.
+os.environ["OMP_NUM_THREADS"] = "1"
+os.environ["OPENBLAS_NUM_THREADS"] = "1"
+os.environ["MKL_NUM_THREADS"] = "1"
+os.environ["XLA_FLAGS"] = (
+    os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+).strip()
+os.environ["JAX_PLATFORMS"] = "cpu"
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+M1, M2 = 36.0, 29.0
+DIST_MPC = 400.0
+F_MIN, F_MAX, DF = 20.0, 1024.0, 0.125
+NBINS = int(round((F_MAX - F_MIN) / DF)) + 1  # 8033
+MC_TRUE = (M1 * M2) ** 0.6 / (M1 + M2) ** 0.2
+Q_TRUE = M2 / M1
+POINT = (28.1, 0.8, 0.0005, 0.1)  # Mc, q, tc, phic (as benches/taylorf2.rs)
+
+
+def pin_cpu(cpu):
+    try:
+        os.sched_setaffinity(0, {cpu})
+        return f"cpu {cpu} (os.sched_setaffinity)"
+    except (AttributeError, OSError) as e:
+        return f"not pinned ({e})"
+
+
+def median_us(fn, reps, warm):
+    for _ in range(warm):
+        fn()
+    ts = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        fn()
+        ts.append((time.perf_counter() - t0) * 1e6)
+    ts.sort()
+    return ts[len(ts) // 2]
+
+
+def time_lal(reps):
+    import lal
+    import lalsimulation as ls
+
+    params = lal.CreateDict()
+    dist_m = DIST_MPC * 1e6 * lal.PC_SI
+
+    def call():
+        return ls.SimInspiralChooseFDWaveform(
+            M1 * lal.MSUN_SI, M2 * lal.MSUN_SI, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+            dist_m, 0.0, 0.0, 0.0, 0.0, 0.0, DF, F_MIN, F_MAX, 0.0, params, ls.TaylorF2)
+
+    hp, _ = call()
+    nonzero = int((abs(hp.data.data) > 0).sum())
+    us = median_us(call, reps, max(reps // 10, 5))
+    return us, hp.data.length, nonzero
+
+
+def time_ripple(reps):
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+    import numpy as np
+    from ripplegw.waveforms.cbc.Taylor.TaylorF2 import gen_TaylorF2
+    import ripplegw
+
+    f_np = F_MIN + DF * np.arange(NBINS)
+    f = jnp.asarray(f_np)
+    y = f_np / 150.0
+    psd = jnp.asarray(1e-47 * (y ** -4.0 + 2.0 + 2.0 * y ** 2.0))
+    f_ref = 20.0
+
+    def theta(mc, q, tc, phic):
+        eta = q / (1.0 + q) ** 2
+        z = jnp.zeros_like(mc)
+        return jnp.stack([mc, eta, z, z, z, z, z + DIST_MPC, tc, phic])
+
+    def strain(p):
+        return gen_TaylorF2(f, theta(p[0], p[1], p[2], p[3]), f_ref, use_lambda_tildes=False)
+
+    p_true = jnp.array([MC_TRUE, Q_TRUE, 0.0, 0.0])
+    p = jnp.array(POINT)
+    fwd = jax.jit(strain)
+    t0 = time.perf_counter()
+    d = fwd(p_true).block_until_ready()  # first call: trace + compile of the forward
+    fwd_compile_ms = (time.perf_counter() - t0) * 1e3
+    assert d.dtype == jnp.complex128 and d.shape == (NBINS,), (d.dtype, d.shape)
+
+    def loss(p):
+        r = d - strain(p)
+        return 0.5 * 4.0 * DF * jnp.sum((r.real ** 2 + r.imag ** 2) / psd)
+
+    out = {"version": ripplegw.__version__, "jax": jax.__version__}
+    for name, fn in (("forward", fwd), ("loss_forward", jax.jit(loss)),
+                     ("value_and_grad", jax.jit(jax.value_and_grad(loss)))):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(p))
+        out[name + "_compile_ms"] = (time.perf_counter() - t0) * 1e3 if name != "forward" else fwd_compile_ms
+        out[name + "_us"] = median_us(lambda: jax.block_until_ready(fn(p)), reps, max(reps // 10, 5))
+    val, g = jax.jit(jax.value_and_grad(loss))(p)
+    out["loss"] = float(val)
+    out["grad"] = [float(x) for x in g]
+    return out
+
+
+def gwml_results(path):
+    if path:
+        text = open(path).read()
+    else:
+        r = subprocess.run(["cargo", "bench", "--bench", "taylorf2"], cwd=REPO, capture_output=True, text=True)
+        if r.returncode != 0:
+            sys.exit(f"cargo bench failed:\n{r.stderr[-3000:]}")
+        text = r.stdout
+    vals = {}
+    for line in text.splitlines():
+        parts = line.split()
+        if len(parts) == 2 and parts[0].startswith("gwml_"):
+            vals[parts[0]] = float(parts[1])
+    return vals, text
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--reps", type=int, default=400)
+    ap.add_argument("--gwml-output", help="read `cargo bench --bench taylorf2` output from this file")
+    ap.add_argument("--cpu", type=int, default=0, help="CPU to pin to (default 0)")
+    args = ap.parse_args()
+
+    pinned = pin_cpu(args.cpu)
+    print(f"W1: TaylorF2 3.5PN, m1 = {M1}, m2 = {M2} Msun, {NBINS} bins "
+          f"({F_MIN}..{F_MAX} Hz, df = {DF}), f64, one thread; pinned: {pinned}; median of {args.reps}")
+
+    gw, _ = gwml_results(args.gwml_output)
+    lal_us, lal_len, lal_nz = time_lal(args.reps)
+    rp = time_ripple(args.reps)
+
+    print(f"LAL: {lal_len} bins in the series, {lal_nz} nonzero; ripplegw {rp['version']}, jax {rp['jax']}")
+    print(f"gwml scene compile: {gw.get('gwml_compile_ms', float('nan')):.1f} ms; JAX trace+compile (first call): "
+          f"forward {rp['forward_compile_ms']:.1f} ms, loss {rp['loss_forward_compile_ms']:.1f} ms, "
+          f"value_and_grad {rp['value_and_grad_compile_ms']:.1f} ms")
+    print(f"loss at (Mc, q, tc, phic) = {POINT}: gwml {gw.get('gwml_loss', float('nan')):.6e}, ripple {rp['loss']:.6e} "
+          "(different models above the ISCO; not expected to agree)")
+    print(f"ripple grad (Mc, q, tc, phic): {', '.join(f'{x:.4e}' for x in rp['grad'])}")
+    print("gwml   grad (Mc, q, tc, phic): " + ", ".join(
+        f"{gw.get('gwml_grad_' + n, float('nan')):.4e}" for n in ("mc", "q", "tc", "phic")))
+    print()
+    g_f, g_l, g_vg = gw["gwml_forward_us"], gw["gwml_loss_forward_us"], gw["gwml_value_and_grad_us"]
+    hdr = f"| {'measurement':<34} | {'gwml µs':>9} | {'LAL µs':>9} | {'ripple µs':>9} | {'LAL/gwml':>8} | {'ripple/gwml':>11} |"
+    print(hdr)
+    print("|" + "|".join("-" * (len(c)) for c in hdr.split("|")[1:-1]) + "|")
+    print(f"| {'forward (complex strain)':<34} | {g_f:>9.1f} | {lal_us:>9.1f} | {rp['forward_us']:>9.1f} | "
+          f"{lal_us / g_f:>8.2f} | {rp['forward_us'] / g_f:>11.2f} |")
+    print(f"| {'likelihood only':<34} | {g_l:>9.1f} | {'-':>9} | {rp['loss_forward_us']:>9.1f} | "
+          f"{'-':>8} | {rp['loss_forward_us'] / g_l:>11.2f} |")
+    print(f"| {'value_and_grad (Mc, q, tc, phic)':<34} | {g_vg:>9.1f} | {'-':>9} | {rp['value_and_grad_us']:>9.1f} | "
+          f"{'-':>8} | {rp['value_and_grad_us'] / g_vg:>11.2f} |")
+    print()
+    print(f"peers_lal_forward_us {lal_us:.3f}")
+    for k in ("forward", "loss_forward", "value_and_grad"):
+        print(f"peers_ripple_{k}_us {rp[k + '_us']:.3f}")
+        print(f"peers_ripple_{k}_compile_ms {rp[k + '_compile_ms']:.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,144 @@
+//! Benchmark of the standard workload W1 with `std::taylorf2`: TaylorF2
+//! 3.5PN, m1 = 36, m2 = 29 Msun, non-spinning, 400 Mpc, 20..1024 Hz at
+//! df = 1/8 Hz (8,033 bins), f64, one thread.
+//!
+//!     cargo bench --bench taylorf2
+//!
+//! Measures (medians over many calls, after warm-up):
+//! - `gwml_forward_us`: the complex strain over the grid (scene `w1_strain`,
+//!   one complex array output, copied out of the kernel as `Outputs` does);
+//! - `gwml_loss_forward_us`: the likelihood 0.5 (d-h|d-h) alone (scene
+//!   `w1_fit`, forward kernel);
+//! - `gwml_value_and_grad_us`: that likelihood and its gradient w.r.t.
+//!   (mc, q, tc, phic), one fused kernel call.
+//!
+//! The data `d` is the model at slightly different params, computed with the
+//! strain scene first and bound as an input. The PSD is the toy curve of
+//! `examples/taylorf2_fit.gw`, `1e-47 (y^-4 + 2 + 2 y^2)`, y = f / 150 Hz
+//! (bench/peers.py uses the same one). Above the Schwarzschild ISCO (67.6 Hz
+//! for this system) std::taylorf2's amplitude is zero, but every bin is
+//! still evaluated.
+//!
+//! Lines starting with `gwml_` are machine-readable (`name value`), read by
+//! `bench/peers.py`.
+
+use gwml::{Model, Value};
+use std::hint::black_box;
+use std::time::Instant;
+
+const SOURCE: &str = "use std::taylorf2::{tf2_strain}
+use std::detector::{inner}
+
+module toy_psd(f: Hz) {
+    let y = f / 150 Hz
+    1e-47 s * (y ^ (-4.0) + 2.0 + 2.0 * y ^ 2.0)
+}
+
+scene w1_strain {
+    precision: f64
+    grid f = frequencies(from: 20 Hz, to: 1024 Hz, step: 0.125 Hz)
+    param mc: Msun = 28.09555579546043
+    param q = 0.8055555555555556
+    param tc: s = 0.0
+    param phic = 0.0
+    output h = tf2_strain(f, mc, q, 0.0, 0.0, 400 Mpc, tc, phic, pn_order: 7)
+}
+
+scene w1_fit {
+    precision: f64
+    grid f = frequencies(from: 20 Hz, to: 1024 Hz, step: 0.125 Hz)
+    input d: complex[f] s
+    param mc: Msun = 28.09555579546043 in 1.0..100.0
+    param q = 0.8055555555555556 in 0.02..1.0
+    param tc: s = 0.0 in -0.1..0.1
+    param phic = 0.0
+    let h = tf2_strain(f, mc, q, 0.0, 0.0, 400 Mpc, tc, phic, pn_order: 7)
+    output loss = 0.5 * inner(d - h, d - h, toy_psd(f), 0.125 Hz)
+    grad loss wrt [mc, q, tc, phic]
+}
+";
+
+/// Params of the data (the true W1 system) and of the evaluation point.
+const TRUTH: [(&str, f64); 4] = [("mc", 28.09555579546043), ("q", 0.8055555555555556), ("tc", 0.0), ("phic", 0.0)];
+const POINT: [(&str, f64); 4] = [("mc", 28.1), ("q", 0.8), ("tc", 0.0005), ("phic", 0.1)];
+const BINS: usize = 8033;
+
+fn median_us(reps: usize, mut f: impl FnMut()) -> f64 {
+    for _ in 0..reps / 10 + 1 {
+        f();
+    }
+    let mut t: Vec<f64> = (0..reps)
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[reps / 2]
+}
+
+fn main() {
+    let reps: usize = std::env::var("GWML_BENCH_REPS").ok().and_then(|s| s.parse().ok()).unwrap_or(400);
+
+    let t0 = Instant::now();
+    let model = Model::from_source("taylorf2_w1.gw", SOURCE).unwrap_or_else(|e| panic!("{e}"));
+    let strain = model.scene(Some("w1_strain")).unwrap_or_else(|e| panic!("{e}"));
+    let fit = model.scene(Some("w1_fit")).unwrap_or_else(|e| panic!("{e}"));
+    let compile_ms = t0.elapsed().as_secs_f64() * 1e3;
+
+    // Data: the model at the true params, through the runtime.
+    let mut srun = strain.bind();
+    for (n, v) in TRUTH {
+        srun.param(n, v).unwrap();
+    }
+    let data = match srun.forward().unwrap().value("h").unwrap() {
+        Value::ComplexArray(h) => h.clone(),
+        other => panic!("strain output is not a complex array: {other:?}"),
+    };
+    assert_eq!(data.len(), BINS, "W1 grid has 8,033 bins");
+
+    let mut frun = fit.bind();
+    frun.input_complex("d", &data).unwrap();
+    for (n, v) in POINT {
+        frun.param(n, v).unwrap();
+        srun.param(n, v).unwrap();
+    }
+    let out = frun.value_and_grad().unwrap();
+    let loss = out.scalar("loss").unwrap();
+    let grads: Vec<f64> = POINT.iter().map(|(n, _)| out.grad("loss", n).unwrap()).collect();
+    let h = match srun.forward().unwrap().value("h").unwrap() {
+        Value::ComplexArray(h) => h.clone(),
+        _ => unreachable!(),
+    };
+    let nonzero = h.iter().filter(|z| z.norm() > 0.0).count();
+
+    let fwd = median_us(reps, || {
+        black_box(srun.forward().unwrap());
+    });
+    let loss_fwd = median_us(reps, || {
+        black_box(frun.forward().unwrap());
+    });
+    let vg = median_us(reps, || {
+        black_box(frun.value_and_grad().unwrap());
+    });
+
+    println!("taylorf2 W1: 3.5PN, m1 = 36, m2 = 29 Msun, {BINS} bins (20..1024 Hz, df = 1/8 Hz), f64, one thread, median of {reps}");
+    println!("  nonzero strain bins (below ISCO): {nonzero}; h[0] = {:.6e}", h[0]);
+    println!("  at mc = {}, q = {}, tc = {}, phic = {}:", POINT[0].1, POINT[1].1, POINT[2].1, POINT[3].1);
+    println!("  loss {loss:.10e}; dL/dmc {:.6e}, dL/dq {:.6e}, dL/dtc {:.6e}, dL/dphic {:.6e}", grads[0], grads[1], grads[2], grads[3]);
+    println!("  {:<36} {:>9.1} ms", "compile (both scenes)", compile_ms);
+    println!("  {:<36} {:>9.1} µs", "gwml forward (complex strain)", fwd);
+    println!("  {:<36} {:>9.1} µs", "gwml forward (likelihood only)", loss_fwd);
+    println!("  {:<36} {:>9.1} µs", "gwml value_and_grad (4 params)", vg);
+    println!("  value_and_grad / likelihood forward: {:.2}x", vg / loss_fwd);
+    println!("gwml_reps {reps}");
+    println!("gwml_compile_ms {compile_ms:.3}");
+    println!("gwml_forward_us {fwd:.3}");
+    println!("gwml_loss_forward_us {loss_fwd:.3}");
+    println!("gwml_value_and_grad_us {vg:.3}");
+    println!("gwml_loss {loss:.17e}");
+    for ((n, _), g) in POINT.iter().zip(&grads) {
+        println!("gwml_grad_{n} {g:.17e}");
+    }
+}
