@@ -9,10 +9,13 @@
 #[path = "../tests/common/chirp_reference.rs"]
 mod reference;
 
+#[path = "common/timing.rs"]
+mod timing;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::hint::black_box;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Instant;
+use timing::median_us;
 
 /// Counts live heap bytes and their peak.
 struct Counting;
@@ -33,21 +36,6 @@ unsafe impl GlobalAlloc for Counting {
 
 #[global_allocator]
 static ALLOC: Counting = Counting;
-
-fn median_us(reps: usize, mut f: impl FnMut()) -> f64 {
-    for _ in 0..reps / 10 + 1 {
-        f();
-    }
-    let mut t: Vec<f64> = (0..reps)
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed().as_secs_f64() * 1e6
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[reps / 2]
-}
 
 /// The same loss and gradient with what the grid fixes precomputed, as gwml
 /// does after specialisation: the fair baseline for code quality.

@@ -22,9 +22,13 @@
 //! Lines starting with `gwml_` are machine-readable (`name value`), read by
 //! `bench/peers.py`.
 
+#[path = "common/timing.rs"]
+mod timing;
+
 use gwml::{Model, Value};
 use std::hint::black_box;
 use std::time::Instant;
+use timing::median_us;
 
 const SOURCE: &str = "use std::taylorf2::{tf2_strain}
 use std::detector::{inner}
@@ -62,21 +66,6 @@ scene w1_fit {
 const TRUTH: [(&str, f64); 4] = [("mc", 28.09555579546043), ("q", 0.8055555555555556), ("tc", 0.0), ("phic", 0.0)];
 const POINT: [(&str, f64); 4] = [("mc", 28.1), ("q", 0.8), ("tc", 0.0005), ("phic", 0.1)];
 const BINS: usize = 8033;
-
-fn median_us(reps: usize, mut f: impl FnMut()) -> f64 {
-    for _ in 0..reps / 10 + 1 {
-        f();
-    }
-    let mut t: Vec<f64> = (0..reps)
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed().as_secs_f64() * 1e6
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[reps / 2]
-}
 
 fn main() {
     let reps: usize = std::env::var("GWML_BENCH_REPS").ok().and_then(|s| s.parse().ok()).unwrap_or(400);
