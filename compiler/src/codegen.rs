@@ -120,6 +120,13 @@ impl Kernel {
     }
 }
 
+// SAFETY: after `finalize_definitions` the kernel's code and data are never
+// written again; the generated function keeps no state between calls (every
+// buffer it touches is passed in by the caller), so one kernel may be called
+// from several threads at once, each with its own buffers.
+unsafe impl Send for Kernel {}
+unsafe impl Sync for Kernel {}
+
 impl Drop for Kernel {
     fn drop(&mut self) {
         if let Some(m) = self.module.take() {

@@ -20,9 +20,9 @@ use gwml_compiler::diagnostics::did_you_mean;
 use gwml_compiler::ir::{Elem, Function, Precision, Shape};
 use gwml_compiler::{CompileError, Options, Program, ScenePipeline};
 use num_complex::Complex64 as C64;
-use std::cell::OnceCell;
 use std::fmt;
 use std::path::Path;
+use std::sync::OnceLock;
 
 /// Anything that can go wrong between source text and results.
 #[derive(Debug)]
@@ -112,7 +112,7 @@ pub struct Scene {
     pub pipeline: ScenePipeline,
     forward_ir: Function,
     forward: Kernel,
-    gradient: OnceCell<Result<Kernel, codegen::CodegenError>>,
+    gradient: OnceLock<Result<Kernel, codegen::CodegenError>>,
 }
 
 impl fmt::Debug for Scene {
@@ -127,7 +127,7 @@ impl Scene {
         fwd.grads.clear();
         let forward_ir = gwml_compiler::passes::specialise(&gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd)));
         let forward = codegen::compile(&forward_ir).map_err(Error::Codegen)?;
-        Ok(Scene { pipeline, forward_ir, forward, gradient: OnceCell::new() })
+        Ok(Scene { pipeline, forward_ir, forward, gradient: OnceLock::new() })
     }
 
     /// The IR that the gradient kernel runs (forward and adjoint).
@@ -454,3 +454,9 @@ fn fill(buf: &mut Buffer, data: &[C64], complex: bool) {
         }
     }
 }
+
+/// Scenes are shared between threads (batches run one `Run` per thread).
+const _: () = {
+    const fn shareable<T: Send + Sync>() {}
+    shareable::<Scene>();
+};
