@@ -59,6 +59,7 @@ impl Builder {
             Op::Select(_, a, _) => t(a),
             Op::Broadcast(a, g) => Ty { elem: t(a).elem, shape: Shape::Grid(g) },
             Op::Reduce(_, a) => Ty { elem: t(a).elem, shape: Shape::Scalar },
+            Op::Dft(d, _) => Ty { elem: if d.inverse { Elem::Real } else { Elem::Complex }, shape: Shape::Grid(d.out) },
         }
     }
 
@@ -209,6 +210,8 @@ impl Builder {
                 }),
                 _ => None,
             },
+            // Transforms are linear: the transform of zero is zero.
+            Op::Dft(_, a) if zero(self, a) => Some(self.zero(ty)),
             Op::PowConst(a, c) if f64::from_bits(c) == 1.0 => Some(a),
             Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => Some(self.constant(C64::new(1.0, 0.0), ty)),
             Op::Select(_, a, b) if a == b => Some(a),

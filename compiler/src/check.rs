@@ -69,7 +69,10 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("select", "select(cond, a, b): a where cond holds, else b"),
     ("sum", "sum(x): sum over the grid of x"),
     ("mean", "mean(x): mean over the grid of x"),
+    ("rfft", "rfft(x, f): Fourier transform dt·Σ x_j e^(-2πi f t_j) of a real x over a time grid onto its spectrum grid f"),
+    ("irfft", "irfft(X, t): inverse of rfft: df·Σ over the Hermitian spectrum X, a real array over the time grid t"),
     ("frequencies", "frequencies(from:, to:, step:): a frequency grid (in `grid` declarations)"),
+    ("spectrum", "spectrum(t): the grid of rfft bins of time grid t, 0 Hz to the Nyquist frequency (in `grid` declarations)"),
     ("times", "times(rate:, duration:): a time grid (in `grid` declarations)"),
 ];
 
@@ -249,7 +252,7 @@ impl<'a> Checker<'a> {
         // Grids first: inputs' types name them.
         for st in &scene.stmts {
             if let SceneStmt::Grid { name, def } = st {
-                let Some(grid) = self.grid_def(name, def) else {
+                let Some(grid) = self.grid_def(name, def, &scope.grids, &b.func.grids) else {
                     scope.poisoned.insert(name.node.clone());
                     continue;
                 };
@@ -384,7 +387,13 @@ impl<'a> Checker<'a> {
         }
     }
 
-    fn grid_def(&mut self, name: &Spanned<String>, def: &'a Expr) -> Option<ir::Grid> {
+    fn grid_def(
+        &mut self,
+        name: &Spanned<String>,
+        def: &'a Expr,
+        known: &HashMap<String, ir::GridId>,
+        grids: &[ir::Grid],
+    ) -> Option<ir::Grid> {
         let ExprKind::Call { callee, args } = &def.node else {
             self.error(
                 Diagnostic::error(def.span, "a grid is defined by `frequencies(...)` or `times(...)`")
@@ -392,13 +401,16 @@ impl<'a> Checker<'a> {
             );
             return None;
         };
+        if callee.node == "spectrum" {
+            return self.spectrum_grid(name, def.span, args, known, grids);
+        }
         let (wanted, dims): (&[&str], &[Dim]) = match callee.node.as_str() {
             "frequencies" => (&["from", "to", "step"], &[Dim::FREQ, Dim::FREQ, Dim::FREQ]),
             "times" => (&["rate", "duration"], &[Dim::FREQ, Dim::TIME]),
             _ => {
                 self.error(
                     Diagnostic::error(callee.span, format!("`{}` does not define a grid", callee.node))
-                        .with_help("use `frequencies(from:, to:, step:)` or `times(rate:, duration:)`"),
+                        .with_help("use `frequencies(from:, to:, step:)`, `times(rate:, duration:)` or `spectrum(t)`"),
                 );
                 return None;
             }
@@ -472,6 +484,43 @@ impl<'a> Checker<'a> {
             return None;
         }
         Some(ir::Grid { name: name.node.clone(), start, step, len: len as usize, unit: unit.into() })
+    }
+
+    /// `grid f = spectrum(t)`: the n/2 + 1 rfft bins of time grid `t`.
+    fn spectrum_grid(
+        &mut self,
+        name: &Spanned<String>,
+        at: Span,
+        args: &[ast::Arg],
+        known: &HashMap<String, ir::GridId>,
+        grids: &[ir::Grid],
+    ) -> Option<ir::Grid> {
+        let time = match args {
+            [ast::Arg { name: None, value }] => match &value.node {
+                ExprKind::Name(n) => match known.get(n).map(|g| &grids[g.0 as usize]) {
+                    Some(g) if g.unit == "s" => Some(g),
+                    Some(_) => {
+                        self.error(
+                            Diagnostic::error(value.span, format!("`{}` is not a time grid", n))
+                                .with_help("`spectrum` takes a grid declared with `times(rate:, duration:)`"),
+                        );
+                        return None;
+                    }
+                    None => None,
+                },
+                _ => None,
+            },
+            _ => None,
+        };
+        let Some(t) = time else {
+            self.error(
+                Diagnostic::error(at, "`spectrum` takes the name of a time grid declared before it")
+                    .with_help("e.g. `grid t = times(rate: 4096 Hz, duration: 2 s)` then `grid f = spectrum(t)`"),
+            );
+            return None;
+        };
+        let n = t.len;
+        Some(ir::Grid { name: name.node.clone(), start: 0.0, step: 1.0 / (n as f64 * t.step), len: n / 2 + 1, unit: "Hz".into() })
     }
 
     fn param_decl(&mut self, p: &'a ast::ParamDecl) -> Option<(ir::ParamInfo, Dim)> {
@@ -1038,7 +1087,7 @@ impl<'a> Checker<'a> {
             self.error(self.unknown_function(callee));
             return None;
         }
-        if name == "frequencies" || name == "times" {
+        if name == "frequencies" || name == "times" || name == "spectrum" {
             self.error(
                 Diagnostic::error(at, format!("`{name}(...)` defines a grid and can only appear in `grid NAME = {name}(...)`"))
                     .with_help("declare a grid in the scene and use its name"),
@@ -1058,7 +1107,7 @@ impl<'a> Checker<'a> {
         }
         let vals: Vec<(Tv, Span)> = vals.into_iter().collect::<Option<_>>()?;
         let arity: &[usize] = match name {
-            "atan2" | "complex" => &[2],
+            "atan2" | "complex" | "rfft" | "irfft" => &[2],
             "min" | "max" => &[1, 2],
             "clamp" | "select" => &[3],
             _ => &[1],
@@ -1197,6 +1246,7 @@ impl<'a> Checker<'a> {
                 };
                 Some(Tv { v: b.binary(op, x, y), dim })
             }
+            "rfft" | "irfft" => self.transform(b, name, vals[0], vals[1]),
             "clamp" => {
                 for v in &vals {
                     self.real_only(b, *v, name)?;
@@ -1212,6 +1262,68 @@ impl<'a> Checker<'a> {
                 self.error(self.unknown_function(callee));
                 None
             }
+        }
+    }
+
+    /// `rfft(x, f)` and `irfft(X, t)`: checks that the two grids are a time
+    /// grid of n samples and its spectrum of n/2 + 1 bins from 0 Hz.
+    fn transform(&mut self, b: &mut Builder, name: &str, x: (Tv, Span), grid: (Tv, Span)) -> Option<Tv> {
+        let inverse = name == "irfft";
+        let (want_dim, target_kind) = if inverse { (Dim::TIME, "time") } else { (Dim::FREQ, "frequency") };
+        let Op::GridCoord(target) = b.func.insts[grid.0.v.index()].op else {
+            self.error(Diagnostic::error(grid.1, format!("the second argument of `{name}` must be a {target_kind} grid")).with_help(
+                format!("pass the name of the grid the result lives on, e.g. `{name}(x, {})`", if inverse { "t" } else { "f" }),
+            ));
+            return None;
+        };
+        if grid.0.dim != want_dim {
+            self.error(
+                Diagnostic::error(grid.1, format!("`{name}` needs a {target_kind} grid here, but this grid is in {}", grid.0.dim))
+                    .with_help(if inverse {
+                        "irfft goes from a spectrum grid to a time grid"
+                    } else {
+                        "rfft goes from a time grid to its spectrum grid"
+                    }),
+            );
+            return None;
+        }
+        let ty = b.ty(x.0.v);
+        let Shape::Grid(source) = ty.shape else {
+            self.error(
+                Diagnostic::error(x.1, format!("`{name}` transforms an array over a grid, but this is a scalar"))
+                    .with_help("pass an array (a value defined on a grid)"),
+            );
+            return None;
+        };
+        let (time, freq) = if inverse { (target, source) } else { (source, target) };
+        let (tg, fg) = (b.func.grids[time.0 as usize].clone(), b.func.grids[freq.0 as usize].clone());
+        let n = tg.len;
+        let matches = fg.start.abs() <= 1e-9 * fg.step && fg.len == n / 2 + 1 && (fg.step * tg.step * n as f64 - 1.0).abs() <= 1e-9;
+        if !matches || tg.unit != "s" {
+            let (ts, fs) = (tg.name.clone(), fg.name.clone());
+            let expect = format!("{} bins from 0 Hz in steps of {} Hz", n / 2 + 1, 1.0 / (n as f64 * tg.step));
+            self.error(
+                Diagnostic::error(
+                    if inverse { grid.1 } else { x.1 },
+                    format!("grids `{ts}` and `{fs}` are not a time grid and its spectrum"),
+                )
+                .with_label(format!("`{ts}` has {n} samples every {} s, so its spectrum has {expect}", tg.step))
+                .with_note(format!("`{fs}` has {} points from {} Hz in steps of {} Hz", fg.len, fg.start, fg.step))
+                .with_help(format!("declare the frequency grid as `grid {fs} = spectrum({ts})`")),
+            );
+            return None;
+        }
+        if inverse {
+            if ty.elem == Elem::Bool {
+                return None;
+            }
+            let xc = b.coerce(x.0.v, ty.with_elem(Elem::Complex));
+            let dft = ir::Dft { inverse: true, doubled: true, scale: fg.step.to_bits(), out: time };
+            Some(Tv { v: b.emit(Op::Dft(dft, xc)), dim: x.0.dim.times(Dim::FREQ)? })
+        } else {
+            self.real_only(b, x, name)?;
+            let dft = ir::Dft { inverse: false, doubled: false, scale: tg.step.to_bits(), out: freq };
+            Some(Tv { v: b.emit(Op::Dft(dft, x.0.v)), dim: x.0.dim.times(Dim::TIME)? })
         }
     }
 

@@ -21,6 +21,7 @@
 //! runtime guarantees; scalar results are written as f64 to
 //! `scalars[slot]` (complex results take two slots).
 
+use crate::dft::{gwml_dft_f32, gwml_dft_f64, DftPlan};
 use crate::ir::*;
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type};
@@ -95,9 +96,40 @@ impl std::error::Error for CodegenError {}
 
 type KernelFn = unsafe extern "C" fn(*const f64, *const *mut u8, *mut f64);
 
+/// A planned transform a kernel calls; boxed so its address is stable.
+enum PlanBox {
+    F64(Box<DftPlan<f64>>),
+    F32(Box<DftPlan<f32>>),
+}
+
+impl PlanBox {
+    fn new(dft: Dft, n: usize, precision: Precision) -> PlanBox {
+        match precision {
+            Precision::F64 => PlanBox::F64(Box::new(DftPlan::new(dft, n))),
+            Precision::F32 => PlanBox::F32(Box::new(DftPlan::new(dft, n))),
+        }
+    }
+
+    fn work_floats(&self) -> usize {
+        match self {
+            PlanBox::F64(p) => p.work_floats(),
+            PlanBox::F32(p) => p.work_floats(),
+        }
+    }
+
+    fn address(&self) -> i64 {
+        match self {
+            PlanBox::F64(p) => &**p as *const DftPlan<f64> as i64,
+            PlanBox::F32(p) => &**p as *const DftPlan<f32> as i64,
+        }
+    }
+}
+
 /// A JIT-compiled scene.
 pub struct Kernel {
     module: Option<JITModule>,
+    /// Transform plans the code points at (kept alive with it).
+    _plans: Vec<PlanBox>,
     entry: KernelFn,
     /// Calling convention.
     pub layout: Layout,
@@ -151,23 +183,28 @@ struct Schedule {
     scalars: Vec<Vec<usize>>,
     /// Array values stored to a buffer: value index → buffer index.
     stored: HashMap<usize, usize>,
+    /// Transforms per epoch, run before that epoch's loops.
+    dfts: Vec<Vec<usize>>,
+    /// Per transform: its plan (index into the kernel's plans) and work buffer.
+    dft_calls: HashMap<usize, (usize, usize)>,
 }
 
 fn on_demand(op: &Op) -> bool {
     matches!(op, Op::Broadcast(..) | Op::GridCoord(_) | Op::Input(_) | Op::Table(_))
 }
 
-fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
+fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> Schedule {
     let n = func.insts.len();
     let mut epoch = vec![0u32; n];
     for (i, inst) in func.insts.iter().enumerate() {
         epoch[i] = match inst.op {
-            Op::Reduce(_, a) => epoch[a.index()] + 1,
+            Op::Reduce(_, a) | Op::Dft(_, a) => epoch[a.index()] + 1,
             op => op.operands().iter().map(|v| epoch[v.index()]).max().unwrap_or(0),
         };
     }
     let max_epoch = epoch.iter().copied().max().unwrap_or(0);
     let mut scalars = vec![Vec::new(); max_epoch as usize + 1];
+    let mut dfts = vec![Vec::new(); max_epoch as usize + 1];
     let mut loop_map: HashMap<(u32, GridId), Vec<usize>> = HashMap::new();
     let roots: Vec<Value> = func.roots();
     for (i, inst) in func.insts.iter().enumerate() {
@@ -177,6 +214,19 @@ fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
                     continue;
                 };
                 loop_map.entry((epoch[a.index()], g)).or_default().push(i);
+            }
+            (Op::Dft(_, a), _) => {
+                dfts[epoch[i] as usize].push(i);
+                // A transform reads its operand from memory: values that are
+                // otherwise recomputed on demand get a loop that stores them.
+                let op = func.insts[a.index()].op;
+                let Shape::Grid(g) = func.ty(a).shape else { continue };
+                if on_demand(&op) && !matches!(op, Op::Input(_) | Op::Table(_)) {
+                    let members = loop_map.entry((epoch[a.index()], g)).or_default();
+                    if !members.contains(&a.index()) {
+                        members.push(a.index());
+                    }
+                }
             }
             (op, Shape::Grid(g)) => {
                 if !on_demand(&op) || roots.contains(&Value(i as u32)) {
@@ -211,6 +261,19 @@ fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
             need_store(o.value.index(), BufferKind::Output(oi), layout, &mut stored);
         }
     }
+    let mut dft_calls = HashMap::new();
+    for &d in dfts.iter().flatten() {
+        let Op::Dft(dft, a) = func.insts[d].op else { unreachable!("only transforms are listed") };
+        need_store(d, BufferKind::Scratch, layout, &mut stored);
+        if !matches!(func.insts[a.index()].op, Op::Input(_) | Op::Table(_) | Op::Dft(..)) {
+            need_store(a.index(), BufferKind::Scratch, layout, &mut stored);
+        }
+        let time = if dft.inverse { func.insts[d].ty.shape } else { func.ty(a).shape };
+        let plan = PlanBox::new(dft, func.len_of(time), func.precision);
+        layout.buffers.push(BufferInfo { kind: BufferKind::Scratch, len: plan.work_floats(), complex: false });
+        plans.push(plan);
+        dft_calls.insert(d, (plans.len() - 1, layout.buffers.len() - 1));
+    }
     for (li, (_, _, members)) in loops.iter().enumerate() {
         for &m in members {
             for v in func.insts[m].op.operands() {
@@ -222,7 +285,7 @@ fn schedule(func: &Function, layout: &mut Layout) -> Schedule {
             }
         }
     }
-    Schedule { epoch, loops, scalars, stored }
+    Schedule { epoch, loops, scalars, stored, dfts, dft_calls }
 }
 
 /// A value in generated code: real part, and imaginary part for complex.
@@ -289,6 +352,8 @@ fn libm_symbols() -> Vec<(&'static str, *const u8)> {
         ("powf", libm::powf as *const u8),
         ("atan2f", libm::atan2f as *const u8),
         ("sincosf", libm::sincosf as *const u8),
+        ("gwml_dft_f64", gwml_dft_f64 as *const u8),
+        ("gwml_dft_f32", gwml_dft_f32 as *const u8),
     ]
 }
 
@@ -321,7 +386,8 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     for (k, t) in func.tables.iter().enumerate() {
         layout.buffers.push(BufferInfo { kind: BufferKind::Table(k), len: t.data.len(), complex: false });
     }
-    let sched = schedule(func, &mut layout);
+    let mut plans = Vec::new();
+    let sched = schedule(func, &mut layout, &mut plans);
     layout.loops = sched.loops.len();
     for r in func.roots() {
         let ty = func.ty(r);
@@ -346,6 +412,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
             bufs: Vec::new(),
             ft: if func.precision == Precision::F32 { types::F32 } else { types::F64 },
             sincos_slot: None,
+            plans: &plans,
         };
         g.emit_body()?;
         g.b.seal_all_blocks();
@@ -360,7 +427,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     let code = module.get_finalized_function(id);
     // SAFETY: `code` is the finalized function with the signature declared above.
     let entry: KernelFn = unsafe { std::mem::transmute::<*const u8, KernelFn>(code) };
-    Ok(Kernel { module: Some(module), entry, layout, clif, clif_insts })
+    Ok(Kernel { module: Some(module), _plans: plans, entry, layout, clif, clif_insts })
 }
 
 struct Gen<'a> {
@@ -376,6 +443,7 @@ struct Gen<'a> {
     bufs: Vec<cranelift_codegen::ir::Value>,
     ft: Type,
     sincos_slot: Option<cranelift_codegen::ir::StackSlot>,
+    plans: &'a [PlanBox],
 }
 
 /// Per-iteration state of one loop.
@@ -469,6 +537,9 @@ impl<'a> Gen<'a> {
                 let v = self.scalar_inst(i, params_ptr)?;
                 self.vals.insert(i, v);
             }
+            for &d in &self.sched.dfts[e] {
+                self.emit_dft(d)?;
+            }
             let loops: Vec<usize> = (0..self.sched.loops.len()).filter(|l| self.sched.loops[*l].0 as usize == e).collect();
             for l in loops {
                 self.emit_loop(l)?;
@@ -486,6 +557,35 @@ impl<'a> Gen<'a> {
             }
         }
         self.b.ins().return_(&[]);
+        Ok(())
+    }
+
+    /// Calls the transform behind instruction `d` on buffers.
+    fn emit_dft(&mut self, d: usize) -> Result<(), CodegenError> {
+        let Op::Dft(_, a) = self.func.insts[d].op else { unreachable!("only transforms are scheduled as calls") };
+        let input = match self.func.insts[a.index()].op {
+            Op::Input(k) => k as usize,
+            Op::Table(t) => self.layout.buffers.iter().position(|b| b.kind == BufferKind::Table(t as usize)).expect("tables have buffers"),
+            _ => self.sched.stored[&a.index()],
+        };
+        let (plan, work) = self.sched.dft_calls[&d];
+        let name = if self.f32() { "gwml_dft_f32" } else { "gwml_dft_f64" };
+        let f = match self.imports.get(name) {
+            Some(f) => *f,
+            None => {
+                let mut sig = Signature::new(self.module.isa().default_call_conv());
+                for _ in 0..4 {
+                    sig.params.push(AbiParam::new(self.ptr));
+                }
+                let id = self.module.declare_function(name, Linkage::Import, &sig).map_err(|e| CodegenError(e.to_string()))?;
+                let f = self.module.declare_func_in_func(id, self.b.func);
+                self.imports.insert(name, f);
+                f
+            }
+        };
+        let plan = self.b.ins().iconst(self.ptr, self.plans[plan].address());
+        let args = [plan, self.bufs[input], self.bufs[self.sched.stored[&d]], self.bufs[work]];
+        self.b.ins().call(f, &args);
         Ok(())
     }
 
@@ -659,6 +759,8 @@ impl<'a> Gen<'a> {
                 let buf = self.layout.buffers.iter().position(|b| b.kind == BufferKind::Table(t as usize)).expect("tables have buffers");
                 self.load_elem(buf, lc.index, false)
             }
+            // Transforms write their whole result before any loop reads it.
+            Op::Dft(..) => self.load_elem(self.sched.stored[&i], lc.index, inst.ty.elem == Elem::Complex),
             // Stored by an earlier loop: reload instead of recomputing.
             _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < lc.epoch => {
                 let buf = self.sched.stored[&i];

@@ -66,20 +66,56 @@ pub fn interpret(func: &Function, params: &[f64], inputs: &[Tensor]) -> InterpRe
             Op::Select(c, x, y) => (0..len).map(|i| if get(c, i).re != 0.0 { get(x, i) } else { get(y, i) }).collect(),
             Op::Broadcast(a, _) => vec![get(a, 0); len],
             Op::Reduce(Reduce::Sum, a) => {
-                // Pairwise-free but compensated (Kahan–Babuška) so the oracle is accurate.
-                let (mut s, mut c) = (C64::new(0.0, 0.0), C64::new(0.0, 0.0));
-                for x in &values[a.index()] {
-                    let t = s + x;
-                    let re = if s.re.abs() >= x.re.abs() { (s.re - t.re) + x.re } else { (x.re - t.re) + s.re };
-                    let im = if s.im.abs() >= x.im.abs() { (s.im - t.im) + x.im } else { (x.im - t.im) + s.im };
-                    c += C64::new(re, im);
-                    s = t;
-                }
-                vec![s + c]
+                // Compensated so the oracle is accurate.
+                let xs = &values[a.index()];
+                vec![C64::new(compensated_sum(xs.iter().map(|x| x.re)), compensated_sum(xs.iter().map(|x| x.im)))]
             }
             Op::Reduce(Reduce::Max, a) => vec![C64::new(values[a.index()].iter().map(|x| x.re).fold(f64::NEG_INFINITY, f64::max), 0.0)],
+            Op::Dft(d, a) => {
+                let n = if d.inverse { len } else { values[a.index()].len() };
+                crate::dft::apply(d, n, &values[a.index()])
+            }
         };
         values.push(t);
     }
     InterpResult { values }
+}
+
+/// The transform of [`Dft`] by its definition, in O(n²) with compensated
+/// sums and exactly reduced angles: independent of the FFT the kernels call.
+pub fn naive_dft(d: Dft, x: &[C64], n: usize) -> Tensor {
+    let bins = n / 2 + 1;
+    let twiddle = |j: usize, k: usize| {
+        // e^{-2πi jk/n} with jk reduced mod n first, so the angle is exact-ish for large n.
+        let r = ((j as u128 * k as u128) % n as u128) as f64;
+        C64::from_polar(1.0, -2.0 * std::f64::consts::PI * r / n as f64)
+    };
+    let s = d.scale();
+    if d.inverse {
+        (0..n)
+            .map(|j| {
+                let terms = (0..bins).map(|k| d.weight(k, n) * (x[k] * twiddle(j, k).conj()).re);
+                C64::new(s * compensated_sum(terms), 0.0)
+            })
+            .collect()
+    } else {
+        (0..bins)
+            .map(|k| {
+                let re = compensated_sum((0..n).map(|j| (x[j] * twiddle(j, k)).re));
+                let im = compensated_sum((0..n).map(|j| (x[j] * twiddle(j, k)).im));
+                C64::new(re, im) * (s * d.weight(k, n))
+            })
+            .collect()
+    }
+}
+
+/// Neumaier's compensated sum.
+fn compensated_sum(xs: impl Iterator<Item = f64>) -> f64 {
+    let (mut s, mut c) = (0.0f64, 0.0f64);
+    for x in xs {
+        let t = s + x;
+        c += if s.abs() >= x.abs() { (s - t) + x } else { (x - t) + s };
+        s = t;
+    }
+    s + c
 }

@@ -144,6 +144,48 @@ pub enum Reduce {
     Max,
 }
 
+/// A discrete Fourier transform between a time grid of `n` samples and its
+/// one-sided frequency grid of `n/2 + 1` bins. It runs as a library call
+/// (realfft) between fused loops, never inside one.
+///
+/// With `w_k = 2` for bins strictly between DC and Nyquist and 1 at DC and
+/// (even `n`) Nyquist when `doubled` is set, and `w_k = 1` otherwise:
+/// - forward (`inverse == false`, real → complex):
+///   `y_k = scale · w_k · Σ_j x_j e^{-2πi jk/n}`;
+/// - inverse (complex → real): `x_j = scale · Σ_k w_k Re(Y_k e^{+2πi jk/n})`.
+///
+/// `rfft(x, f)` is the forward transform with `scale = dt`; `irfft(X, t)`
+/// the inverse with `scale = df` and `doubled` (the Hermitian half
+/// spectrum). The transpose of each (the adjoint) flips `inverse` and keeps
+/// `doubled` and `scale`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Dft {
+    /// Direction: false for time → frequency, true for frequency → time.
+    pub inverse: bool,
+    /// Whether the frequency side is weighted by `w_k` (see above).
+    pub doubled: bool,
+    /// Scale factor (bits of an f64).
+    pub scale: u64,
+    /// Grid of the result.
+    pub out: GridId,
+}
+
+impl Dft {
+    /// The scale factor.
+    pub fn scale(&self) -> f64 {
+        f64::from_bits(self.scale)
+    }
+
+    /// The weight `w_k` of frequency bin `k` for a transform of `n` samples.
+    pub fn weight(&self, k: usize, n: usize) -> f64 {
+        if !self.doubled || k == 0 || 2 * k == n {
+            1.0
+        } else {
+            2.0
+        }
+    }
+}
+
 /// An instruction's operation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Op {
@@ -172,6 +214,8 @@ pub enum Op {
     Broadcast(Value, GridId),
     /// A reduction over the operand's grid.
     Reduce(Reduce, Value),
+    /// A discrete Fourier transform of an array onto [`Dft::out`].
+    Dft(Dft, Value),
 }
 
 impl Op {
@@ -184,7 +228,7 @@ impl Op {
     pub fn operands(&self) -> Vec<Value> {
         match *self {
             Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) | Op::Table(_) => vec![],
-            Op::Unary(_, a) | Op::PowConst(a, _) | Op::Broadcast(a, _) | Op::Reduce(_, a) => {
+            Op::Unary(_, a) | Op::PowConst(a, _) | Op::Broadcast(a, _) | Op::Reduce(_, a) | Op::Dft(_, a) => {
                 vec![a]
             }
             Op::Binary(_, a, b) => vec![a, b],
@@ -199,6 +243,7 @@ impl Op {
             Op::PowConst(a, c) => Op::PowConst(f(a), c),
             Op::Broadcast(a, g) => Op::Broadcast(f(a), g),
             Op::Reduce(r, a) => Op::Reduce(r, f(a)),
+            Op::Dft(d, a) => Op::Dft(d, f(a)),
             Op::Binary(b, x, y) => Op::Binary(b, f(x), f(y)),
             Op::Select(c, x, y) => Op::Select(f(c), f(x), f(y)),
             other => other,
@@ -367,6 +412,19 @@ impl Function {
                 Op::Select(c, a, b) => t(a) == t(b) && t(c).elem == Elem::Bool && t(c).shape == t(a).shape,
                 Op::Broadcast(a, _) => t(a).shape == Shape::Scalar,
                 Op::Reduce(_, a) => t(a).shape != Shape::Scalar,
+                Op::Dft(d, a) => {
+                    let (time, freq) = if d.inverse { (inst.ty.shape, t(a).shape) } else { (t(a).shape, inst.ty.shape) };
+                    let (want_in, want_out) = if d.inverse { (Elem::Complex, Elem::Real) } else { (Elem::Real, Elem::Complex) };
+                    match (time, freq) {
+                        (Shape::Grid(tg), Shape::Grid(fg)) => {
+                            inst.ty.shape == Shape::Grid(d.out)
+                                && t(a).elem == want_in
+                                && inst.ty.elem == want_out
+                                && self.grids[fg.0 as usize].len == self.grids[tg.0 as usize].len / 2 + 1
+                        }
+                        _ => false,
+                    }
+                }
                 _ => true,
             };
             if !ok {
@@ -400,6 +458,14 @@ impl Function {
             Op::Select(c, a, b) => format!("select %{}, %{}, %{}", c.0, a.0, b.0),
             Op::Broadcast(a, gr) => format!("broadcast %{} to {}", a.0, g(gr)),
             Op::Reduce(r, a) => format!("{} %{}", format!("{r:?}").to_lowercase(), a.0),
+            Op::Dft(d, a) => format!(
+                "{}{} %{} to {}, scale {:?}",
+                if d.inverse { "idft" } else { "dft" },
+                if d.doubled { " doubled" } else { "" },
+                a.0,
+                g(d.out),
+                d.scale()
+            ),
         }
     }
 

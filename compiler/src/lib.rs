@@ -6,6 +6,7 @@
 
 pub mod builder;
 pub mod check;
+pub mod dft;
 pub mod diagnostics;
 pub mod driver;
 pub mod eval;

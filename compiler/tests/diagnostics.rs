@@ -327,3 +327,31 @@ fn diagnostics_come_out_in_a_stable_order() {
     let want: Vec<String> = (1..=5).map(|i| format!("unknown name `u{i}`")).collect();
     assert_eq!(first, want, "diagnostics are not in source order");
 }
+
+#[test]
+fn rfft_onto_a_grid_that_is_not_the_spectrum() {
+    let err = fail(
+        "scene s {\n  grid t = times(rate: 64 Hz, duration: 1 s)\n  grid f = frequencies(from: 0 Hz, to: 32 Hz, step: 2 Hz)\n  param a = 1.0\n  output y = sum(abs(rfft(a * t, f)))\n}\n",
+    );
+    assert_reports(&err, "not a time grid and its spectrum");
+    assert_helps(&err, "grid f = spectrum(t)");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
+fn irfft_needs_a_time_grid() {
+    let err = fail(
+        "scene s {\n  grid t = times(rate: 64 Hz, duration: 1 s)\n  grid f = spectrum(t)\n  param a = 1.0\n  output y = sum(irfft(a * f, f))\n}\n",
+    );
+    assert_reports(&err, "needs a time grid here");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
+fn spectrum_of_a_frequency_grid() {
+    let err = fail(
+        "scene s {\n  grid f = frequencies(from: 0 Hz, to: 32 Hz, step: 1 Hz)\n  grid g = spectrum(f)\n  param a = 1.0\n  output y = a\n}\n",
+    );
+    assert_reports(&err, "is not a time grid");
+    insta::assert_snapshot!(err.render(false));
+}

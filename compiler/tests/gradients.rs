@@ -863,3 +863,50 @@ fn chirp_fit_gradients_match_finite_differences() {
         assert!(g.abs() < 1e-6, "{g}");
     }
 }
+
+// ---------------------------------------------------------------------------
+// Fourier transforms
+// ---------------------------------------------------------------------------
+
+/// A scene with a time grid of `rate` samples over 1 s, its spectrum `f`,
+/// params x and y, and `body` (lets) before `output out = formula`.
+fn transform_scene(rate: u32, body: &str, formula: &str) -> ScenePipeline {
+    let src = format!(
+        "scene t {{\n  grid t = times(rate: {rate} Hz, duration: 1 s)\n  grid f = spectrum(t)\n  param x = 0.3\n  param y = 0.7\n  let u = t / 1 s\n  let nu = f / 1 Hz\n{body}\n  output out = {formula}\n  grad out wrt [x, y]\n}}\n"
+    );
+    compile_source("transform.gw", &src, Some("t"))
+}
+
+fn check_transform(body: &str, formula: &str) {
+    // Even and odd lengths: the Nyquist bin exists only for even n.
+    for rate in [16, 15, 2, 1] {
+        let pl = transform_scene(rate, body, formula);
+        for (x, y) in signed_points(rate as u64) {
+            check_point(&pl, &format!("{formula} (n = {rate})"), &[x, y], &[], "out", &["x", "y"], Cs::No, Fd::Relative);
+        }
+    }
+}
+
+#[test]
+fn grad_rfft() {
+    let body = "  let s = sin(x * u * 7.0 + y) * exp(-y * y * u)\n  let S = rfft(s, f)";
+    check_transform(body, "sum(abs2(S)) * 1 Hz / 1 s");
+    check_transform(body, "sum(re(S * cis(x * nu)) + im(S) * y) * 1 Hz / 1 s");
+    check_transform(body, "sum(abs(S) * nu) * 1 Hz / 1 s");
+}
+
+#[test]
+fn grad_irfft() {
+    let body = "  let X = complex(x * cos(nu * y), y * sin(nu + x)) * 1 s\n  let r = irfft(X, t)";
+    check_transform(body, "sum(r * r * u)");
+    check_transform(body, "sum(r * sin(u * x))");
+    // Imaginary parts of the DC and Nyquist bins do not reach the result.
+    check_transform("  let r = irfft(complex(x * nu, y * x + nu) * 1 s, t)", "sum(r * r)");
+}
+
+#[test]
+fn grad_rfft_irfft_round_trip_with_a_filter() {
+    let body = "  let s = sin(x * u * 5.0) * y + u * x\n  let w = irfft(rfft(s, f) * exp(-nu * y * y / 4.0), t)";
+    check_transform(body, "sum(w * w * (1.0 + u))");
+    check_transform(body, "max(w) + re(sum(rfft(w, f) * conj(rfft(s, f)))) * 1 Hz * 1 Hz");
+}

@@ -219,3 +219,61 @@ fn folded_branch_leaves_no_nan_in_gradients() {
     assert_eq!(out.grad("y", "a").unwrap(), 0.0);
     assert_eq!(out.grad("y", "b").unwrap(), 10.0);
 }
+
+/// Transforms run as library calls between loops: operands from inputs,
+/// grid-only tables, broadcasts and computed arrays; results as outputs,
+/// read by later loops, and transformed again.
+#[test]
+fn transforms_match_interpreter_in_both_precisions() {
+    let src = "scene s {
+        grid t = times(rate: 128 Hz, duration: 0.5 s)
+        grid f = spectrum(t)
+        input d: real[t] = sin(t * 40 Hz) * 1e-3
+        param a = 1.3
+        param w: Hz = 9.0
+        let u = t / 1 s
+        let x = a * sin(2.0 * pi * w * t) * exp(-((u - 0.25) / 0.05)^2)
+        let X = rfft(x, f)
+        let D = rfft(d, f)
+        let G = rfft(exp(-u * 3.0), f)
+        let C = rfft(a * 1 s / 1 s + 0.0 * u, f)
+        let y = irfft(X * exp(-f / 20 Hz) + D * G / 1 s, t)
+        output spectrum = X
+        output filtered = y
+        output back = irfft(rfft(y, f), t)
+        output e = sum(abs2(X - D)) * 1 Hz * 1 Hz + re(sum(C)) * 1 Hz
+        output r = sum(y * y * u)
+        grad e wrt [a, w]
+        grad r wrt [a, w]
+    }";
+    let model = Model::from_source("s.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    let out = scene.bind().value_and_grad().unwrap();
+    let f = scene.ir();
+    let d: interp::Tensor = (0..64).map(|i| num_complex::Complex64::new((i as f64 / 128.0 * 40.0).sin() * 1e-3, 0.0)).collect();
+    let r = interp::interpret(f, &[1.3, 9.0], &[d]);
+    for o in ["e", "r"] {
+        assert!(rel(out.scalar(o).unwrap(), r.output(f, o).unwrap()[0].re) < 1e-12, "{o}");
+        for p in ["a", "w"] {
+            assert!(rel(out.grad(o, p).unwrap(), r.grad(f, o, p).unwrap()) < 1e-10, "d{o}/d{p}");
+        }
+    }
+    let Ok(Value::ComplexArray(x)) = out.value("spectrum") else { panic!("spectrum is a complex array") };
+    assert_eq!(x.len(), 33);
+    for (got, want) in x.iter().zip(r.output(f, "spectrum").unwrap()) {
+        assert!((got - want).norm() <= 1e-14, "{got} vs {want}");
+    }
+    let (Ok(Value::RealArray(y)), Ok(Value::RealArray(back))) = (out.value("filtered"), out.value("back")) else { panic!("real arrays") };
+    for ((got, want), b) in y.iter().zip(r.output(f, "filtered").unwrap()).zip(back) {
+        assert!((got - want.re).abs() <= 1e-14, "{got} vs {want}");
+        assert!((b - got).abs() <= 1e-14, "irfft(rfft(y)) = {b} != y = {got}");
+    }
+    let s32 = model.scene_with(None, Options { precision: Some(Precision::F32) }).unwrap();
+    let o32 = s32.bind().value_and_grad().unwrap();
+    for o in ["e", "r"] {
+        assert!(rel(o32.scalar(o).unwrap(), out.scalar(o).unwrap()) < 1e-4, "f32 {o}");
+        for p in ["a", "w"] {
+            assert!(rel(o32.grad(o, p).unwrap(), out.grad(o, p).unwrap()) < 1e-3, "f32 d{o}/d{p}");
+        }
+    }
+}

@@ -297,6 +297,11 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value, active: &[bool]) -> Vec
             };
             vec![(a, b.emit(Op::Broadcast(g, grid)))]
         }
+        // A transform is linear; its adjoint is its transpose (see `Dft`).
+        Op::Dft(d, a) => {
+            let Shape::Grid(grid) = b.ty(a).shape else { return vec![] };
+            vec![(a, b.emit(Op::Dft(Dft { inverse: !d.inverse, out: grid, ..d }, g)))]
+        }
         Op::Reduce(Reduce::Max, a) => {
             // The maximum's adjoint is shared equally among tied elements
             // (a subgradient; JAX's convention).
