@@ -71,6 +71,7 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("mean", "mean(x): mean over the grid of x"),
     ("rfft", "rfft(x, f): Fourier transform dt·Σ x_j e^(-2πi f t_j) of a real x over a time grid onto its spectrum grid f"),
     ("irfft", "irfft(X, t): inverse of rfft: df·Σ over the Hermitian spectrum X, a real array over the time grid t"),
+    ("spacing", "spacing(g): the step between points of grid g (dt of a time grid, df of a frequency grid)"),
     ("frequencies", "frequencies(from:, to:, step:): a frequency grid (in `grid` declarations)"),
     ("spectrum", "spectrum(t): the grid of rfft bins of time grid t, 0 Hz to the Nyquist frequency (in `grid` declarations)"),
     ("times", "times(rate:, duration:): a time grid (in `grid` declarations)"),
@@ -1247,6 +1248,17 @@ impl<'a> Checker<'a> {
                 Some(Tv { v: b.binary(op, x, y), dim })
             }
             "rfft" | "irfft" => self.transform(b, name, vals[0], vals[1]),
+            "spacing" => {
+                let Op::GridCoord(g) = b.func.insts[a.0.v.index()].op else {
+                    self.error(
+                        Diagnostic::error(a.1, "`spacing` takes the name of a grid")
+                            .with_help("e.g. `spacing(t)` for the sample interval of time grid `t`"),
+                    );
+                    return None;
+                };
+                let step = b.func.grids[g.0 as usize].step;
+                Some(Tv { v: b.real(step), dim: a.0.dim })
+            }
             "clamp" => {
                 for v in &vals {
                     self.real_only(b, *v, name)?;

@@ -4,6 +4,7 @@
 /// `(name, source)` of every stdlib file; `use std::NAME` loads `NAME`.
 pub const FILES: &[(&str, &str)] = &[
     ("antenna", include_str!("../../stdlib/antenna.gw")),
+    ("burst", include_str!("../../stdlib/burst.gw")),
     ("chirp", include_str!("../../stdlib/chirp.gw")),
     ("detector", include_str!("../../stdlib/detector.gw")),
     ("psd", include_str!("../../stdlib/psd.gw")),
