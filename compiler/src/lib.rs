@@ -12,6 +12,7 @@ pub mod driver;
 pub mod eval;
 pub mod interp;
 pub mod ir;
+pub mod mathlib;
 pub mod passes;
 pub mod source;
 pub mod stdlib;
