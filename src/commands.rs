@@ -1,7 +1,7 @@
 //! The `gwml` subcommands. Each returns `Err(message)` for the user.
 
-use crate::{BindArgs, CompileArgs, Emit, FitArgs, Format, OptimizerArg, PrecisionArg, RunArgs};
-use gwml::compiler::ir::Precision;
+use crate::{BindArgs, CompileArgs, Emit, FitArgs, Format, KnobArgs, MathArg, OptimizerArg, PrecisionArg, RunArgs};
+use gwml::compiler::ir::{MathMode, Precision};
 use gwml::compiler::syntax::print_ast;
 use gwml::compiler::Options;
 use gwml::{Error, Model, Value};
@@ -17,11 +17,16 @@ fn render(e: Error) -> String {
     }
 }
 
-fn options(p: Option<PrecisionArg>) -> Options {
+fn options(k: KnobArgs) -> Options {
     Options {
-        precision: p.map(|p| match p {
+        precision: k.precision.map(|p| match p {
             PrecisionArg::F64 => Precision::F64,
             PrecisionArg::F32 => Precision::F32,
+        }),
+        math: k.math.map(|m| match m {
+            MathArg::Exact => MathMode::Exact,
+            MathArg::Fast => MathMode::Fast,
+            MathArg::Fastest => MathMode::Fastest,
         }),
     }
 }
@@ -36,7 +41,7 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
         return Ok(());
     }
     let t1 = Instant::now();
-    let scene = model.scene_with(a.scene.as_deref(), options(a.precision)).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
     let t_fwd = t1.elapsed();
     let has_grads = !scene.ir().grads.is_empty();
     let t2 = Instant::now();
@@ -49,7 +54,7 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
         Some(Emit::Ast) | None => {
             let f = scene.ir();
             println!(
-                "scene {}: {} param{}, {} input{}, {} output{}, {} gradient{} (precision {})",
+                "scene {}: {} param{}, {} input{}, {} output{}, {} gradient{} (precision {}, math {})",
                 f.name,
                 f.params.len(),
                 plural(f.params.len()),
@@ -59,7 +64,8 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
                 plural(f.outputs.len()),
                 f.grads.len(),
                 plural(f.grads.len()),
-                f.precision
+                f.precision,
+                f.math
             );
         }
     }
@@ -119,7 +125,7 @@ fn split_pair<'a>(s: &'a str, flag: &str) -> Result<(&'a str, &'a str), String> 
 /// `gwml run`.
 pub fn run(a: RunArgs) -> Result<(), String> {
     let model = Model::from_file(&a.file).map_err(render)?;
-    let scene = model.scene_with(a.scene.as_deref(), options(a.precision)).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
     let mut run = scene.bind();
     bind_args(&mut run, &a.bind)?;
     let out = if a.grad { run.value_and_grad() } else { run.forward() }.map_err(render)?;
@@ -161,7 +167,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         );
         return Ok(());
     }
-    println!("scene {} (precision {})", f.name, f.precision);
+    println!("scene {} (precision {}, math {})", f.name, f.precision, f.math);
     let w = out.params.iter().map(|p| p.0.len()).chain(out.values.iter().map(|v| v.0.len())).max().unwrap_or(0);
     if !out.params.is_empty() {
         println!("params:");
@@ -231,7 +237,7 @@ fn bind_args(run: &mut gwml::Run, bind: &BindArgs) -> Result<(), String> {
 pub fn fit(a: FitArgs) -> Result<(), String> {
     use gwml_runtime::fit::{fit_run, Optimizer, Settings};
     let model = Model::from_file(&a.file).map_err(render)?;
-    let scene = model.scene_with(a.scene.as_deref(), options(a.precision)).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
     let mut run = scene.bind();
     bind_args(&mut run, &a.bind)?;
     let optimizer = match a.optimizer {

@@ -53,6 +53,28 @@ pub enum PrecisionArg {
     F32,
 }
 
+/// How generated code computes sin, cos, exp, log, cbrt and pow.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum MathArg {
+    /// libm accuracy (inline code within 2 ulp of glibc where that is faster, libm otherwise).
+    Exact,
+    /// Inline polynomials, about 1e-12 relative error.
+    Fast,
+    /// Inline polynomials, about 1e-7 relative error.
+    Fastest,
+}
+
+/// Overrides of a scene's speed/accuracy knobs.
+#[derive(clap::Args, Clone, Copy)]
+pub struct KnobArgs {
+    /// Override the scene's precision knob.
+    #[arg(long, value_enum)]
+    pub precision: Option<PrecisionArg>,
+    /// Override the scene's math knob.
+    #[arg(long, value_enum)]
+    pub math: Option<MathArg>,
+}
+
 /// How `run` prints results.
 #[derive(Clone, Copy, ValueEnum, PartialEq)]
 pub enum Format {
@@ -72,9 +94,8 @@ pub struct CompileArgs {
     /// Print one stage's output instead of the summary.
     #[arg(long, value_enum)]
     pub emit: Option<Emit>,
-    /// Override the scene's precision knob.
-    #[arg(long, value_enum)]
-    pub precision: Option<PrecisionArg>,
+    #[command(flatten)]
+    pub knobs: KnobArgs,
     /// Print op counts per stage, kernel counts and compile time per stage.
     #[arg(long)]
     pub stats: bool,
@@ -109,9 +130,8 @@ pub struct RunArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "text")]
     pub format: Format,
-    /// Override the scene's precision knob.
-    #[arg(long, value_enum)]
-    pub precision: Option<PrecisionArg>,
+    #[command(flatten)]
+    pub knobs: KnobArgs,
 }
 
 /// The optimiser `fit` runs.
@@ -150,9 +170,8 @@ pub struct FitArgs {
     /// Do not print progress lines (they go to standard error).
     #[arg(long, short)]
     pub quiet: bool,
-    /// Override the scene's precision knob.
-    #[arg(long, value_enum)]
-    pub precision: Option<PrecisionArg>,
+    #[command(flatten)]
+    pub knobs: KnobArgs,
 }
 
 fn main() -> ExitCode {

@@ -342,7 +342,7 @@ impl Repl {
     fn scene(&self, extra: &str) -> Result<gwml::Scene, String> {
         let src = self.session.source(None, extra);
         let model = self.compile(&src)?;
-        model.scene_with(Some(SCENE), Options { precision: self.session.precision }).map_err(|e| self.render(e))
+        model.scene_with(Some(SCENE), Options { precision: self.session.precision, ..Default::default() }).map_err(|e| self.render(e))
     }
 
     /// Value of `expr`, formatted.
@@ -418,8 +418,9 @@ impl Repl {
                 let mut parts = rest.split_whitespace();
                 let scene_name = parts.next().ok_or("error: usage: :run SCENE [NAME=VALUE ...]\n")?;
                 let model = self.compile(&self.session.source(None, ""))?;
-                let scene =
-                    model.scene_with(Some(scene_name), Options { precision: self.session.precision }).map_err(|e| self.render(e))?;
+                let scene = model
+                    .scene_with(Some(scene_name), Options { precision: self.session.precision, ..Default::default() })
+                    .map_err(|e| self.render(e))?;
                 let mut run = scene.bind();
                 for kv in parts {
                     let (k, v) = kv.split_once('=').ok_or_else(|| format!("error: expected NAME=VALUE, got `{kv}`\n"))?;

@@ -238,11 +238,18 @@ impl<'a> Checker<'a> {
                         Diagnostic::error(value.span, format!("unknown precision `{other}`"))
                             .with_help("use `precision: f64` or `precision: f32`"),
                     ),
+                    ("math", "exact") => func.math = ir::MathMode::Exact,
+                    ("math", "fast") => func.math = ir::MathMode::Fast,
+                    ("math", "fastest") => func.math = ir::MathMode::Fastest,
+                    ("math", other) => self.error(
+                        Diagnostic::error(value.span, format!("unknown math mode `{other}`"))
+                            .with_help("use `math: exact` (libm accuracy), `math: fast` (~1e-12) or `math: fastest` (~1e-7)"),
+                    ),
                     (other, _) => {
                         let mut d = Diagnostic::error(name.span, format!("unknown scene setting `{other}`")).with_label("not a knob");
-                        d = match did_you_mean(other, ["precision"]) {
+                        d = match did_you_mean(other, ["precision", "math"]) {
                             Some(s) => d.with_help(format!("did you mean `{s}`?")),
-                            None => d.with_help("the only knob is `precision: f64 | f32`"),
+                            None => d.with_help("the knobs are `precision: f64 | f32` and `math: exact | fast | fastest`"),
                         };
                         self.error(d);
                     }

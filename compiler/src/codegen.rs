@@ -23,6 +23,7 @@
 
 use crate::dft::{gwml_dft_f32, gwml_dft_f64, DftPlan};
 use crate::ir::*;
+use crate::mathlib::{MathEmitter, SlowPath};
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type};
 use cranelift_codegen::settings::{self, Configurable};
@@ -398,6 +399,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
         }
     }
     let mut fbc = FunctionBuilderContext::new();
+    let math = MathEmitter::new(module.isa(), if func.precision == Precision::F32 { types::F32 } else { types::F64 }, func.math);
     {
         let b = FunctionBuilder::new(&mut ctx.func, &mut fbc);
         let mut g = Gen {
@@ -413,6 +415,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
             ft: if func.precision == Precision::F32 { types::F32 } else { types::F64 },
             sincos_slot: None,
             plans: &plans,
+            math,
         };
         g.emit_body()?;
         g.b.seal_all_blocks();
@@ -444,6 +447,7 @@ struct Gen<'a> {
     ft: Type,
     sincos_slot: Option<cranelift_codegen::ir::StackSlot>,
     plans: &'a [PlanBox],
+    math: MathEmitter,
 }
 
 /// Per-iteration state of one loop.
@@ -497,7 +501,72 @@ impl<'a> Gen<'a> {
         Ok(self.b.inst_results(c)[0])
     }
 
+    /// Whether `name` is emitted inline (`mathlib`) rather than called in
+    /// libm. The policy follows mathlib's measurements: in f64, inline
+    /// sin/cos/sincos/cbrt are as exact as libm and faster, so `exact` uses
+    /// them; exp/log/pow are only faster at reduced accuracy. In f32, glibc's
+    /// float functions are faster than the inline code except cbrt.
+    fn inline_math(&self, name: &str) -> bool {
+        match (self.func.math, self.f32()) {
+            (MathMode::Exact, false) => matches!(name, "sin" | "cos" | "sincos" | "cbrt"),
+            (MathMode::Exact, true) => false,
+            (_, false) => matches!(name, "sin" | "cos" | "sincos" | "cbrt" | "exp" | "log" | "pow"),
+            (_, true) => name == "cbrt",
+        }
+    }
+
+    /// `name(args)` (f64 names) inline or through libm, per [`Gen::inline_math`].
+    fn math(
+        &mut self,
+        name: &'static str,
+        args: &[cranelift_codegen::ir::Value],
+    ) -> Result<Vec<cranelift_codegen::ir::Value>, CodegenError> {
+        if !self.inline_math(name) {
+            if name == "sincos" {
+                let (s, c) = self.libm_sincos(args[0])?;
+                return Ok(vec![s, c]);
+            }
+            return Ok(vec![self.call(name, args)?]);
+        }
+        // The inline code's cold path calls libm: import what it may need first.
+        let slow_names: &[&'static str] = if name == "sincos" { &["sin", "cos"] } else { std::slice::from_ref(&name) };
+        for n in slow_names {
+            let n = if self.f32() { f32_name(n) } else { n };
+            self.import(n)?;
+        }
+        let f32 = self.f32();
+        let Gen { b, imports, math, .. } = self;
+        let imports: &HashMap<&'static str, FuncRef> = imports;
+        let mut slow = |fb: &mut FunctionBuilder, n: &'static str, a: &[cranelift_codegen::ir::Value]| slow_call(fb, imports, f32, n, a);
+        let slow: &mut SlowPath = &mut slow;
+        Ok(match name {
+            "sincos" => {
+                let (s, c) = math.sincos(b, args[0], slow);
+                vec![s, c]
+            }
+            "sin" => vec![math.sin(b, args[0], slow)],
+            "cos" => vec![math.cos(b, args[0], slow)],
+            "exp" => vec![math.exp(b, args[0], slow)],
+            "log" => vec![math.log(b, args[0], slow)],
+            "cbrt" => vec![math.cbrt(b, args[0], slow)],
+            "pow" => vec![math.pow(b, args[0], args[1], slow)],
+            other => return Err(CodegenError(format!("no inline code for `{other}`"))),
+        })
+    }
+
+    fn math1(&mut self, name: &'static str, x: cranelift_codegen::ir::Value) -> Result<cranelift_codegen::ir::Value, CodegenError> {
+        Ok(self.math(name, &[x])?[0])
+    }
+
     fn sincos(
+        &mut self,
+        x: cranelift_codegen::ir::Value,
+    ) -> Result<(cranelift_codegen::ir::Value, cranelift_codegen::ir::Value), CodegenError> {
+        let r = self.math("sincos", &[x])?;
+        Ok((r[0], r[1]))
+    }
+
+    fn libm_sincos(
         &mut self,
         x: cranelift_codegen::ir::Value,
     ) -> Result<(cranelift_codegen::ir::Value, cranelift_codegen::ir::Value), CodegenError> {
@@ -794,16 +863,16 @@ impl<'a> Gen<'a> {
                 match u {
                     UnOp::Neg => Cv { re: self.b.ins().fneg(x), im: a.im.map(|i| self.b.ins().fneg(i)) },
                     UnOp::Sqrt => Cv::real(self.b.ins().sqrt(x)),
-                    UnOp::Cbrt => Cv::real(self.call("cbrt", &[x])?),
+                    UnOp::Cbrt => Cv::real(self.math1("cbrt", x)?),
                     UnOp::Exp if ins_complex(0) => {
-                        let e = self.call("exp", &[x])?;
+                        let e = self.math1("exp", x)?;
                         let (s, c) = self.sincos(a.im.expect("complex"))?;
                         Cv { re: self.b.ins().fmul(e, c), im: Some(self.b.ins().fmul(e, s)) }
                     }
-                    UnOp::Exp => Cv::real(self.call("exp", &[x])?),
-                    UnOp::Log => Cv::real(self.call("log", &[x])?),
-                    UnOp::Sin => Cv::real(self.call("sin", &[x])?),
-                    UnOp::Cos => Cv::real(self.call("cos", &[x])?),
+                    UnOp::Exp => Cv::real(self.math1("exp", x)?),
+                    UnOp::Log => Cv::real(self.math1("log", x)?),
+                    UnOp::Sin => Cv::real(self.math1("sin", x)?),
+                    UnOp::Cos => Cv::real(self.math1("cos", x)?),
                     UnOp::Tan => Cv::real(self.call("tan", &[x])?),
                     UnOp::Tanh => Cv::real(self.call("tanh", &[x])?),
                     UnOp::Abs if ins_complex(0) => {
@@ -877,7 +946,7 @@ impl<'a> Gen<'a> {
                         Cv { re: self.b.ins().fdiv(num_re, d), im: Some(self.b.ins().fdiv(num_im, d)) }
                     }
                     BinOp::Div => Cv::real(self.b.ins().fdiv(a.re, c.re)),
-                    BinOp::Pow => Cv::real(self.call("pow", &[a.re, c.re])?),
+                    BinOp::Pow => Cv::real(self.math("pow", &[a.re, c.re])?[0]),
                     BinOp::Atan2 => Cv::real(self.call("atan2", &[a.re, c.re])?),
                     BinOp::Min => Cv::real(self.b.ins().fmin(a.re, c.re)),
                     BinOp::Max => Cv::real(self.b.ins().fmax(a.re, c.re)),
@@ -954,8 +1023,27 @@ impl<'a> Gen<'a> {
             return Ok(self.b.ins().sqrt(x));
         }
         let e = self.fconst(c);
-        self.call("pow", &[x, e])
+        Ok(self.math("pow", &[x, e])?[0])
     }
+}
+
+/// Calls libm's `name` (f64 name) from the inline code's cold path; the
+/// functions were imported beforehand (see [`Gen::math`]).
+fn slow_call(
+    fb: &mut FunctionBuilder,
+    imports: &HashMap<&'static str, FuncRef>,
+    f32: bool,
+    name: &'static str,
+    args: &[cranelift_codegen::ir::Value],
+) -> Vec<cranelift_codegen::ir::Value> {
+    if name == "sincos" {
+        let s = slow_call(fb, imports, f32, "sin", args)[0];
+        let c = slow_call(fb, imports, f32, "cos", args)[0];
+        return vec![s, c];
+    }
+    let f = imports[if f32 { f32_name(name) } else { name }];
+    let call = fb.ins().call(f, args);
+    fb.inst_results(call).to_vec()
 }
 
 fn f32_name(base: &'static str) -> &'static str {

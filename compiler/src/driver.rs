@@ -53,6 +53,8 @@ pub struct Program {
 pub struct Options {
     /// Overrides the scene's `precision` knob.
     pub precision: Option<Precision>,
+    /// Overrides the scene's `math` knob.
+    pub math: Option<crate::ir::MathMode>,
 }
 
 /// Instruction counts and times of each stage, for `gwml compile --stats`.
@@ -172,6 +174,9 @@ impl Program {
     /// Runs scene `name` through prune, adjoint and simplify.
     pub fn pipeline(&self, name: Option<&str>, opts: Options) -> Result<ScenePipeline, String> {
         let mut checked = self.scene_ir(name)?.clone();
+        if let Some(m) = opts.math {
+            checked.math = m;
+        }
         if let Some(p) = opts.precision {
             checked.precision = p;
         }

@@ -294,6 +294,29 @@ impl fmt::Display for Precision {
     }
 }
 
+/// How generated code computes transcendental functions (the scene's
+/// `math` knob); see `mathlib` for the measured errors.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum MathMode {
+    /// Within 2 ulp of glibc libm (f64); f32 within 1 ulp of glibc's f32 functions.
+    #[default]
+    Exact,
+    /// About 1e-12 relative error (cheaper polynomials, no extra-precision tails).
+    Fast,
+    /// About 1e-7 relative error (f32 work and users who want speed).
+    Fastest,
+}
+
+impl fmt::Display for MathMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            MathMode::Exact => "exact",
+            MathMode::Fast => "fast",
+            MathMode::Fastest => "fastest",
+        })
+    }
+}
+
 /// A scalar parameter of the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParamInfo {
@@ -376,6 +399,8 @@ pub struct Function {
     pub tables: Vec<Table>,
     /// Working precision.
     pub precision: Precision,
+    /// Accuracy of transcendental functions.
+    pub math: MathMode,
 }
 
 impl Function {
@@ -486,7 +511,7 @@ impl Function {
 impl fmt::Display for Function {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let mut s = String::new();
-        let _ = writeln!(s, "scene {} (precision {})", self.name, self.precision);
+        let _ = writeln!(s, "scene {} (precision {}, math {})", self.name, self.precision, self.math);
         for g in &self.grids {
             let _ = writeln!(s, "  grid {}: {} points, {:?} + i*{:?} [{}]", g.name, g.len, g.start, g.step, g.unit);
         }

@@ -136,17 +136,7 @@ use cranelift_codegen::ir::{types, Block, BlockArg, InstBuilder, MemFlagsData, T
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::FunctionBuilder;
 
-/// How transcendental functions are computed.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum MathMode {
-    /// Within 2 ulp of glibc libm (f64); f32 within 1 ulp of glibc's f32 functions.
-    #[default]
-    Exact,
-    /// About 1e-12 relative error (cheaper polynomials, no extra-precision tails).
-    Fast,
-    /// About 1e-7 relative error (f32 work and users who want speed).
-    Fastest,
-}
+pub use crate::ir::MathMode;
 
 /// Calls the libm function `name` (the f64 name: "sin", "cos", "sincos",
 /// "exp", "log", "cbrt", "pow") on `args` of the emitter's type and returns
