@@ -9,13 +9,10 @@
 #[path = "../tests/common/chirp_reference.rs"]
 mod reference;
 
-#[path = "common/timing.rs"]
-mod timing;
-
+use gwml::timing::median_us;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::hint::black_box;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use timing::median_us;
 
 /// Counts live heap bytes and their peak.
 struct Counting;

@@ -22,13 +22,10 @@
 //! Lines starting with `gwml_` are machine-readable (`name value`), read by
 //! `bench/peers.py`.
 
-#[path = "common/timing.rs"]
-mod timing;
-
+use gwml::timing::median_us;
 use gwml::{Model, Value};
 use std::hint::black_box;
 use std::time::Instant;
-use timing::median_us;
 
 const SOURCE: &str = "use std::taylorf2::{tf2_strain}
 use std::detector::{inner}

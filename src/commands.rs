@@ -400,3 +400,54 @@ fn num(x: f64) -> String {
         format!("{x:e}")
     }
 }
+
+/// `gwml tradeoff`.
+pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
+    use gwml::tradeoff::{all_configs, csv, sweep, table, Config, Settings};
+    let model = Model::from_file(&a.file).map_err(render)?;
+    let knobs = |p: Option<PrecisionArg>, m: Option<MathArg>| options(KnobArgs { precision: p, math: m });
+    let configs: Vec<Config> = all_configs()
+        .into_iter()
+        .filter(|c| a.precision.is_empty() || a.precision.iter().any(|p| knobs(Some(*p), None).precision == Some(c.precision)))
+        .filter(|c| a.math.is_empty() || a.math.iter().any(|m| knobs(None, Some(*m)).math == Some(c.math)))
+        .collect();
+    let settings = Settings { configs, reps: a.reps, psd: a.psd.clone() };
+    let total =
+        settings.configs.len() + usize::from(!settings.configs.iter().any(|c| c.precision == Precision::F64 && c.math == MathMode::Exact));
+    let bind = |run: &mut gwml::Run| bind_args(run, &a.bind).map_err(Error::Bind);
+    let mut progress = |i: usize, c: Config| eprintln!("[{}/{total}] precision {}, math {}", i + 1, c.precision, c.math);
+    let rows = sweep(&model, a.scene.as_deref(), &settings, &bind, &mut progress).map_err(|e| match e {
+        Error::Bind(m) if m.starts_with("error:") => m,
+        other => render(other),
+    })?;
+    print!("{}", table(&rows));
+    println!("(* = Pareto-optimal in time and error; speed-up of fwd+grad, or forward, relative to f64 exact; median of {} calls)", a.reps);
+    if let Some(p) = &a.csv {
+        std::fs::write(p, csv(&rows)).map_err(|e| format!("error: cannot write {}: {e}", p.display()))?;
+    }
+    if let Some(p) = &a.json {
+        let items: Vec<serde_json::Value> = rows
+            .iter()
+            .map(|r| {
+                json!({"precision": r.config.precision.to_string(), "math": r.config.math.to_string(), "forward_us": r.forward_us,
+                       "grad_us": r.grad_us, "output_error": r.output_error, "grad_error": r.grad_error, "mismatch": r.mismatch, "pareto": r.pareto,
+                       "failure": r.failure})
+            })
+            .collect();
+        let text = serde_json::to_string_pretty(&items).map_err(|e| format!("error: {e}"))?;
+        std::fs::write(p, text + "\n").map_err(|e| format!("error: cannot write {}: {e}", p.display()))?;
+    }
+    if let Some(p) = &a.plot {
+        let points: Vec<(f64, f64, String, bool)> =
+            rows.iter().map(|r| (r.time_us(), r.error(), format!("{} {}", r.config.precision, r.config.math), r.pareto)).collect();
+        crate::plot::scatter_loglog(
+            p,
+            "time against error (red: Pareto-optimal)",
+            "time per call (µs)",
+            "error vs f64 exact",
+            &points,
+            1e-17,
+        )?;
+    }
+    Ok(())
+}

@@ -21,6 +21,8 @@ struct Cli {
 enum Command {
     /// Check a model, differentiate it, JIT-compile it and report.
     Compile(CompileArgs),
+    /// Time a scene under every precision/math setting and measure each one's error against f64-exact.
+    Tradeoff(TradeoffArgs),
     /// Evaluate a scene's outputs (and gradients with --grad).
     Run(RunArgs),
     /// Minimise a scene's scalar loss over the params of its `grad` statement
@@ -174,12 +176,45 @@ pub struct FitArgs {
     pub knobs: KnobArgs,
 }
 
+#[derive(clap::Args)]
+pub struct TradeoffArgs {
+    /// The .gw file.
+    pub file: PathBuf,
+    /// Scene to measure (optional when the file has one scene).
+    #[arg(long)]
+    pub scene: Option<String>,
+    #[command(flatten)]
+    pub bind: BindArgs,
+    /// Precisions to sweep [default: all].
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub precision: Vec<PrecisionArg>,
+    /// Math modes to sweep [default: all].
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub math: Vec<MathArg>,
+    /// Timed calls per configuration and kernel (medians are reported).
+    #[arg(long, default_value_t = 200)]
+    pub reps: usize,
+    /// A real array output holding the PSD that weights the waveform mismatch.
+    #[arg(long, value_name = "OUTPUT")]
+    pub psd: Option<String>,
+    /// Write the rows as CSV.
+    #[arg(long, value_name = "PATH.csv")]
+    pub csv: Option<PathBuf>,
+    /// Write the rows as JSON.
+    #[arg(long, value_name = "PATH.json")]
+    pub json: Option<PathBuf>,
+    /// Plot time against error as a PNG.
+    #[arg(long, value_name = "PATH.png")]
+    pub plot: Option<PathBuf>,
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Compile(a) => commands::compile(a),
         Command::Run(a) => commands::run(a),
         Command::Fit(a) => commands::fit(a),
+        Command::Tradeoff(a) => commands::tradeoff(a),
         Command::Repl => {
             let failures = repl::run();
             return if failures == 0 { ExitCode::SUCCESS } else { ExitCode::FAILURE };

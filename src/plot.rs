@@ -41,3 +41,51 @@ pub fn line_plot(path: &Path, title: &str, x_label: &str, y_label: &str, xs: &[f
     root.present().map_err(|e| err(&e))?;
     Ok(())
 }
+
+/// Draws labelled points on log-log axes into a PNG at `path`; highlighted
+/// points are drawn filled in red. Non-positive values are clamped to
+/// `floor` so exact references still appear.
+pub fn scatter_loglog(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    points: &[(f64, f64, String, bool)],
+    floor: f64,
+) -> Result<(), String> {
+    register_font();
+    let pts: Vec<(f64, f64, &str, bool)> =
+        points.iter().filter(|p| p.0.is_finite() && p.1.is_finite()).map(|p| (p.0.max(floor), p.1.max(floor), p.2.as_str(), p.3)).collect();
+    if pts.is_empty() {
+        return Err("nothing to plot: no finite values".into());
+    }
+    let (x0, x1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
+    let (y0, y1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
+    let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(16)
+        .x_label_area_size(44)
+        .y_label_area_size(80)
+        .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 10.0..y1 * 10.0).log_scale())
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .y_label_formatter(&|y| format!("{y:.0e}"))
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(|e| err(&e))?;
+    chart
+        .draw_series(pts.iter().map(|&(x, y, label, hi)| {
+            let style = if hi { RED.filled() } else { BLUE.stroke_width(2) };
+            EmptyElement::at((x, y)) + Circle::new((0, 0), 5, style) + Text::new(label.to_string(), (8, -6), ("sans-serif", 13))
+        }))
+        .map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}

@@ -1,10 +1,12 @@
-//! Timing shared by the benchmarks: medians, because the machine is noisy.
+//! Wall-clock medians, because the machine is noisy: used by `gwml
+//! tradeoff` and the benchmarks.
 
 use std::time::Instant;
 
-/// Median wall time of `f` in microseconds over `reps` calls, after a tenth
-/// as many warm-up calls.
+/// Median wall time of `f` in microseconds over `reps` calls (at least
+/// one), after a tenth as many warm-up calls.
 pub fn median_us(reps: usize, mut f: impl FnMut()) -> f64 {
+    let reps = reps.max(1);
     for _ in 0..reps / 10 + 1 {
         f();
     }

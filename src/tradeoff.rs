@@ -1,0 +1,322 @@
+//! `gwml tradeoff`: one scene compiled under every combination of the
+//! speed/accuracy knobs, each timed and compared with the f64-exact
+//! reference, so a user can pick a point on the Pareto front.
+//!
+//! Errors are measured on the same bound params and inputs:
+//! - output error: over every output, the largest `max_i |a_i − r_i| / max_i |r_i|`
+//!   (a max-norm relative error, so tiny elements do not dominate);
+//! - gradient error: over every declared gradient, the largest `|g − g_ref| / |g_ref|`;
+//! - mismatch of each complex array output (a waveform):
+//!   `1 − Re⟨a, r⟩ / √(⟨a, a⟩⟨r, r⟩)` with `⟨a, b⟩ = Σ a_k conj(b_k) / S_k`, where
+//!   `S` is the real array output named by `--psd` (unweighted without it).
+//!   No maximisation over time or phase: a pure precision loss, not a search.
+
+use crate::timing::median_us;
+use gwml_compiler::ir::{MathMode, Precision};
+use gwml_compiler::Options;
+use gwml_runtime::{Error, Model, Outputs, Run, Value};
+use num_complex::Complex64 as C64;
+use std::fmt::Write;
+
+/// One combination of knobs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Config {
+    /// Working precision.
+    pub precision: Precision,
+    /// Transcendental functions.
+    pub math: MathMode,
+}
+
+/// What the sweep measures.
+pub struct Settings {
+    /// Configurations to measure (the f64-exact reference is always run first).
+    pub configs: Vec<Config>,
+    /// Timed calls per configuration and kernel (medians are reported).
+    pub reps: usize,
+    /// A real array output used as the PSD weighting the mismatch.
+    pub psd: Option<String>,
+}
+
+/// Measurements of one configuration.
+#[derive(Clone, Debug)]
+pub struct Row {
+    /// The knobs.
+    pub config: Config,
+    /// Median time of a forward call, µs.
+    pub forward_us: f64,
+    /// Median time of a forward+gradient call, µs (scenes with gradients).
+    pub grad_us: Option<f64>,
+    /// Largest relative (max-norm) error of any output against the reference.
+    pub output_error: f64,
+    /// Largest relative error of any gradient.
+    pub grad_error: Option<f64>,
+    /// Largest mismatch of any complex array output.
+    pub mismatch: Option<f64>,
+    /// No other row is at least as fast and at least as accurate (and better in one).
+    pub pareto: bool,
+    /// Why this configuration could not run (e.g. a non-finite output in
+    /// f32); its times and errors are then NaN.
+    pub failure: Option<String>,
+}
+
+impl Row {
+    /// The time that ranks rows: forward+gradient if the scene has gradients.
+    pub fn time_us(&self) -> f64 {
+        self.grad_us.unwrap_or(self.forward_us)
+    }
+
+    /// The error that ranks rows: the worst of outputs, gradients and mismatch
+    /// (infinite for a failed configuration).
+    pub fn error(&self) -> f64 {
+        if self.failure.is_some() {
+            return f64::INFINITY;
+        }
+        self.output_error.max(self.grad_error.unwrap_or(0.0)).max(self.mismatch.unwrap_or(0.0))
+    }
+}
+
+/// Every precision × math combination.
+pub fn all_configs() -> Vec<Config> {
+    let mut v = Vec::new();
+    for precision in [Precision::F64, Precision::F32] {
+        for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
+            v.push(Config { precision, math });
+        }
+    }
+    v
+}
+
+fn rel_max_norm(a: &[C64], r: &[C64]) -> f64 {
+    let scale = r.iter().map(|z| z.norm()).fold(0.0, f64::max);
+    let diff = a.iter().zip(r).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max);
+    if scale > 0.0 {
+        diff / scale
+    } else {
+        diff
+    }
+}
+
+fn as_complex(v: &Value) -> Vec<C64> {
+    match v {
+        Value::Real(x) => vec![C64::new(*x, 0.0)],
+        Value::Complex(z) => vec![*z],
+        Value::RealArray(x) => x.iter().map(|x| C64::new(*x, 0.0)).collect(),
+        Value::ComplexArray(z) => z.clone(),
+    }
+}
+
+/// `1 − Re⟨a, r⟩ / √(⟨a, a⟩⟨r, r⟩)` weighted by `1/psd` when given.
+pub fn mismatch(a: &[C64], r: &[C64], psd: Option<&[f64]>) -> f64 {
+    let w = |k: usize| psd.map_or(1.0, |s| 1.0 / s[k]);
+    let (mut aa, mut rr) = (0.0, 0.0);
+    for k in 0..a.len().min(r.len()) {
+        aa += a[k].norm_sqr() * w(k);
+        rr += r[k].norm_sqr() * w(k);
+    }
+    if aa == 0.0 && rr == 0.0 {
+        return 0.0;
+    }
+    // 1 − Re⟨â, r̂⟩ loses digits near 0: ‖â − r̂‖² / 2 equals it and does not.
+    let (na, nr) = (aa.sqrt(), rr.sqrt());
+    let mut d2 = 0.0;
+    for k in 0..a.len().min(r.len()) {
+        d2 += (a[k] / na - r[k] / nr).norm_sqr() * w(k);
+    }
+    d2 / 2.0
+}
+
+/// Runs the sweep: compiles the scene under each configuration, binds it
+/// with `bind`, times both kernels and compares with the f64-exact run.
+/// `progress` is told each configuration before it is measured.
+pub fn sweep(
+    model: &Model,
+    scene: Option<&str>,
+    settings: &Settings,
+    bind: &dyn Fn(&mut Run) -> Result<(), Error>,
+    progress: &mut dyn FnMut(usize, Config),
+) -> Result<Vec<Row>, Error> {
+    let reference = Config { precision: Precision::F64, math: MathMode::Exact };
+    let mut configs = vec![reference];
+    configs.extend(settings.configs.iter().copied().filter(|c| *c != reference));
+    let mut rows: Vec<Row> = Vec::new();
+    let mut reference_out: Option<Outputs> = None;
+    for (i, config) in configs.into_iter().enumerate() {
+        progress(i, config);
+        let compiled = model.scene_with(scene, Options { precision: Some(config.precision), math: Some(config.math) })?;
+        let has_grads = !compiled.ir().grads.is_empty();
+        let mut run = compiled.bind();
+        bind(&mut run)?;
+        let first = if has_grads { run.value_and_grad() } else { run.forward() };
+        let out = match (first, i) {
+            (Ok(out), _) => out,
+            // The reference must run; other settings may fail (reported in their row).
+            (Err(e), 0) => return Err(e),
+            (Err(e), _) => {
+                let nan = f64::NAN;
+                let failure = Some(e.to_string());
+                rows.push(Row {
+                    config,
+                    forward_us: nan,
+                    grad_us: None,
+                    output_error: nan,
+                    grad_error: None,
+                    mismatch: None,
+                    pareto: false,
+                    failure,
+                });
+                continue;
+            }
+        };
+        let forward_us = timed(settings.reps, &mut run, false)?;
+        let grad_us = if has_grads { Some(timed(settings.reps, &mut run, true)?) } else { None };
+        let r = reference_out.get_or_insert_with(|| out.clone());
+        let (output_error, grad_error, mismatch) = compare(&out, r, settings.psd.as_deref())?;
+        rows.push(Row { config, forward_us, grad_us, output_error, grad_error, mismatch, pareto: false, failure: None });
+    }
+    mark_pareto(&mut rows);
+    Ok(rows)
+}
+
+fn timed(reps: usize, run: &mut Run, grad: bool) -> Result<f64, Error> {
+    let mut failure = None;
+    let t = median_us(reps, || {
+        let r = if grad { run.value_and_grad() } else { run.forward() };
+        if let Err(e) = r {
+            failure.get_or_insert(e);
+        }
+    });
+    failure.map_or(Ok(t), Err)
+}
+
+fn compare(out: &Outputs, r: &Outputs, psd: Option<&str>) -> Result<(f64, Option<f64>, Option<f64>), Error> {
+    let weight = match psd {
+        Some(name) => match r.value(name)? {
+            Value::RealArray(s) => Some(s.clone()),
+            _ => return Err(Error::Bind(format!("--psd {name}: the PSD must be a real array output"))),
+        },
+        None => None,
+    };
+    let mut output_error: f64 = 0.0;
+    let mut mismatch_max: Option<f64> = None;
+    for (name, want) in &r.values {
+        let got = out.value(name)?;
+        output_error = output_error.max(rel_max_norm(&as_complex(got), &as_complex(want)));
+        if let (Value::ComplexArray(a), Value::ComplexArray(b)) = (got, want) {
+            let m = mismatch(a, b, weight.as_deref().filter(|w| w.len() == b.len()));
+            mismatch_max = Some(mismatch_max.map_or(m, |x: f64| x.max(m)));
+        }
+    }
+    let mut grad_error: Option<f64> = None;
+    for (o, p, want) in &r.grads {
+        let got = out.grad(o, p)?;
+        let e = if *want != 0.0 { ((got - want) / want).abs() } else { got.abs() };
+        grad_error = Some(grad_error.map_or(e, |x: f64| x.max(e)));
+    }
+    Ok((output_error, grad_error, mismatch_max))
+}
+
+/// Marks the rows no other row dominates in (time, error).
+pub fn mark_pareto(rows: &mut [Row]) {
+    let points: Vec<(f64, f64)> = rows.iter().map(|r| (r.time_us(), r.error())).collect();
+    for (i, row) in rows.iter_mut().enumerate() {
+        let (t, e) = points[i];
+        row.pareto =
+            row.failure.is_none() && !points.iter().enumerate().any(|(j, &(tj, ej))| j != i && tj <= t && ej <= e && (tj < t || ej < e));
+    }
+}
+
+fn opt(x: Option<f64>, f: impl Fn(f64) -> String) -> String {
+    x.map_or_else(|| "-".to_string(), f)
+}
+
+/// The rows sorted by time as an aligned table (Markdown-compatible);
+/// `*` marks Pareto-optimal rows, `speed-up` is relative to f64-exact.
+pub fn table(rows: &[Row]) -> String {
+    let base = rows.iter().find(|r| r.config.precision == Precision::F64 && r.config.math == MathMode::Exact).map(Row::time_us);
+    let mut sorted: Vec<&Row> = rows.iter().collect();
+    sorted.sort_by(|a, b| a.failure.is_some().cmp(&b.failure.is_some()).then(a.time_us().total_cmp(&b.time_us())));
+    let mut s = String::new();
+    let _ = writeln!(s, "| pareto | precision | math | forward µs | fwd+grad µs | speed-up | output rel. err | grad rel. err | mismatch |");
+    let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|---:|---:|");
+    for r in sorted {
+        if let Some(f) = &r.failure {
+            let _ = writeln!(s, "|  | {} | {} | failed: {} | | | | | |", r.config.precision, r.config.math, f.replace('|', "/"));
+            continue;
+        }
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.1} | {} | {} | {:.1e} | {} | {} |",
+            if r.pareto { "*" } else { "" },
+            r.config.precision,
+            r.config.math,
+            r.forward_us,
+            opt(r.grad_us, |t| format!("{t:.1}")),
+            opt(base, |b| format!("{:.2}×", b / r.time_us())),
+            r.output_error,
+            opt(r.grad_error, |e| format!("{e:.1e}")),
+            opt(r.mismatch, |m| format!("{m:.1e}")),
+        );
+    }
+    s
+}
+
+/// The rows as CSV with a header line.
+pub fn csv(rows: &[Row]) -> String {
+    let mut s = String::from("precision,math,forward_us,grad_us,output_error,grad_error,mismatch,pareto,failure\n");
+    let o = |x: Option<f64>| x.map_or(String::new(), |v| format!("{v:e}"));
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{},{},{:e},{},{:e},{},{},{},\"{}\"",
+            r.config.precision,
+            r.config.math,
+            r.forward_us,
+            o(r.grad_us),
+            r.output_error,
+            o(r.grad_error),
+            o(r.mismatch),
+            r.pareto,
+            r.failure.as_deref().unwrap_or("").replace('"', "'")
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(t: f64, e: f64) -> Row {
+        Row {
+            config: Config { precision: Precision::F64, math: MathMode::Exact },
+            forward_us: t,
+            grad_us: None,
+            output_error: e,
+            grad_error: None,
+            mismatch: None,
+            pareto: false,
+            failure: None,
+        }
+    }
+
+    #[test]
+    fn pareto_front_keeps_only_undominated_rows() {
+        let mut rows = vec![row(10.0, 0.0), row(5.0, 1e-12), row(6.0, 1e-10), row(4.0, 1e-7), row(4.0, 1e-6)];
+        mark_pareto(&mut rows);
+        let flags: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
+        assert_eq!(flags, [true, true, false, true, false]);
+    }
+
+    #[test]
+    fn mismatch_is_zero_for_equal_and_small_for_perturbed_waveforms() {
+        let a: Vec<C64> = (0..100).map(|k| C64::from_polar(1.0 / (1.0 + k as f64), 0.1 * (k * k) as f64)).collect();
+        assert_eq!(mismatch(&a, &a, None), 0.0);
+        // A phase error δ on every bin: mismatch 1 − cos δ ≈ δ²/2.
+        let d = 1e-4;
+        let b: Vec<C64> = a.iter().map(|z| z * C64::from_polar(1.0, d)).collect();
+        let m = mismatch(&b, &a, None);
+        assert!((m / (d * d / 2.0) - 1.0).abs() < 1e-6, "{m}");
+        let psd: Vec<f64> = (0..100).map(|k| 1.0 + k as f64).collect();
+        assert!((mismatch(&b, &a, Some(&psd)) / (d * d / 2.0) - 1.0).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,65 @@
+//! `gwml tradeoff` end to end: the table, its files, and a failing setting
+//! reported in its row instead of aborting the sweep.
+
+use std::process::Command;
+
+fn gwml(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_gwml")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().expect("gwml runs");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn tradeoff_sweeps_math_modes_and_writes_csv_json_and_png() {
+    let dir = std::env::temp_dir().join(format!("gwml-tradeoff-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (csv, json, png) = (dir.join("t.csv"), dir.join("t.json"), dir.join("t.png"));
+    let (ok, stdout, stderr) = gwml(&[
+        "tradeoff",
+        "examples/taylorf2_tradeoff.gw",
+        "--psd",
+        "psd",
+        "--reps",
+        "3",
+        "--precision",
+        "f64",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--plot",
+        png.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("[1/3] precision f64, math exact"), "{stderr}");
+    let rows: Vec<&str> = stdout.lines().filter(|l| l.contains("| f64 |")).collect();
+    assert_eq!(rows.len(), 3, "{stdout}");
+    // The reference has no error and is never dominated in accuracy.
+    let exact = rows.iter().find(|r| r.contains("| exact |")).unwrap();
+    assert!(exact.starts_with("| * |") && exact.contains("| 0.0e0 | 0.0e0 | 0.0e0 |"), "{exact}");
+    let items: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let items = items.as_array().unwrap();
+    assert_eq!(items.len(), 3);
+    for it in items {
+        let (m, g) = (it["mismatch"].as_f64().unwrap(), it["grad_error"].as_f64().unwrap());
+        let bound = match it["math"].as_str().unwrap() {
+            "exact" => (0.0, 0.0),
+            "fast" => (1e-18, 1e-8),
+            _ => (1e-8, 1e-2),
+        };
+        assert!(m <= bound.0 && g <= bound.1, "{it}");
+    }
+    assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 4);
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Strains of 1e-23 over PSDs of 1e-47 overflow f32 (the loss is not
+/// finite): those rows say so, and the f64 rows are still measured.
+#[test]
+fn a_failing_setting_is_reported_in_its_row() {
+    let (ok, stdout, stderr) = gwml(&["tradeoff", "examples/taylorf2_tradeoff.gw", "--reps", "2", "--math", "exact"]);
+    assert!(ok, "{stderr}");
+    let f32_row = stdout.lines().find(|l| l.contains("| f32 |")).expect("an f32 row");
+    assert!(f32_row.contains("failed: output `loss` is not finite"), "{f32_row}");
+    assert!(stdout.lines().any(|l| l.starts_with("| * | f64 | exact |")), "{stdout}");
+}
