@@ -63,7 +63,8 @@ fn psd_text_files_bind_with_or_without_prefix_and_equal_the_loader() {
     for (file, prefix) in [("toy.txt", ""), ("toy.txt", "psd:"), ("toy.csv", ""), ("toy", "psd:")] {
         let path = dir.join(file);
         std::fs::write(&path, text).unwrap();
-        let (ok, _, err) = gwml(&["run", src, "--input", &format!("psd={prefix}{}", path.display()), "--output", &format!("p={}", out.display())]);
+        let (ok, _, err) =
+            gwml(&["run", src, "--input", &format!("psd={prefix}{}", path.display()), "--output", &format!("p={}", out.display())]);
         assert!(ok, "{file} {prefix}: {err}");
         let p: Vec<f64> = gwml::npy::read(&out).unwrap().values.iter().map(|z| z.re).collect();
         results.push(p);

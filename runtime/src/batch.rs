@@ -72,7 +72,15 @@ impl<'a> Batch<'a> {
     /// declared unit. Params not named keep their defaults (or
     /// [`Batch::set`]). Defaults: [`Mode::Forward`], rayon's global pool.
     pub fn new(names: &[&'a str], values: &'a [f64]) -> Batch<'a> {
-        Batch { names: names.to_vec(), values: Cow::Borrowed(values), fixed: Vec::new(), inputs: Vec::new(), mode: Mode::Forward, threads: None, bad_row: None }
+        Batch {
+            names: names.to_vec(),
+            values: Cow::Borrowed(values),
+            fixed: Vec::new(),
+            inputs: Vec::new(),
+            mode: Mode::Forward,
+            threads: None,
+            bad_row: None,
+        }
     }
 
     /// A batch over the params `names` with one row of values per item

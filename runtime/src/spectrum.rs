@@ -4,7 +4,8 @@
 //!
 //! File format: one point per line, frequency in Hz then value, separated
 //! by whitespace or by one comma (CSV). Everything from `#` or `%` to the
-//! end of a line is a comment; blank lines are skipped. The first
+//! end of a line is a comment; blank lines (and a UTF-8 byte-order mark)
+//! are skipped. The first
 //! non-comment line may be a header whose two fields are both not numbers
 //! (`frequency,asd`). Frequencies must be positive, finite and strictly
 //! increasing; values positive and finite; at least two points. Values are
@@ -80,7 +81,7 @@ impl Spectrum {
         let mut last_line = 0;
         let mut prev_text = "";
         let mut seen_content = false;
-        for (k, raw) in text.lines().enumerate() {
+        for (k, raw) in text.strip_prefix('\u{feff}').unwrap_or(text).lines().enumerate() {
             let line = k + 1;
             let content = raw.split(['#', '%']).next().unwrap_or("").trim();
             if content.is_empty() {
@@ -189,7 +190,8 @@ impl Run<'_> {
     /// taken in the input's declared unit).
     pub fn input_spectrum(&mut self, name: &str, spectrum: &Spectrum) -> Result<&mut Self, Error> {
         let f = self.func();
-        let info = f.inputs.iter().find(|i| i.name == name).ok_or_else(|| unknown("input", name, f.inputs.iter().map(|i| i.name.as_str())))?;
+        let info =
+            f.inputs.iter().find(|i| i.name == name).ok_or_else(|| unknown("input", name, f.inputs.iter().map(|i| i.name.as_str())))?;
         if info.ty.elem != Elem::Real {
             return Err(Error::Bind(format!("input `{name}` is complex; a spectrum file gives real values")));
         }

@@ -81,6 +81,7 @@ fn comments_csv_and_headers_parse() {
         "# header comment\nf psd\n10 4\n100 1\n",
         "  10.0e0 , 4.0\n1e2,1\n\n\n",
         "10 4\r\n100 1\r\n",
+        "\u{feff}10 4\n100 1\n",
     ];
     for text in variants {
         let s = parse(text, Kind::Psd);
