@@ -222,6 +222,11 @@ fn bind_args(run: &mut gwml::Run, bind: &BindArgs) -> Result<(), String> {
     }
     for s in &bind.input {
         let (name, path) = split_pair(s, "--input")?;
+        if let Some((kind, file)) = spectrum_source(path) {
+            let spectrum = gwml::spectrum::Spectrum::read(file, kind).map_err(render)?;
+            run.input_spectrum(name, &spectrum).map_err(render)?;
+            continue;
+        }
         let data = gwml::npy::read(Path::new(path)).map_err(render)?;
         if data.complex {
             run.input_complex(name, &data.values).map_err(render)?;
@@ -231,6 +236,26 @@ fn bind_args(run: &mut gwml::Run, bind: &BindArgs) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// Whether `--input NAME=SOURCE` names a two-column spectrum text file
+/// (`asd:FILE` is an ASD, squared; `psd:FILE` or any other file that is not
+/// a NumPy file is a PSD), and which; `None` for a `.npy` file.
+fn spectrum_source(source: &str) -> Option<(gwml::spectrum::Kind, &str)> {
+    use gwml::spectrum::Kind;
+    if let Some(file) = source.strip_prefix("asd:") {
+        return Some((Kind::Asd, file));
+    }
+    if let Some(file) = source.strip_prefix("psd:") {
+        return Some((Kind::Psd, file));
+    }
+    let path = Path::new(source);
+    let npy_magic = || {
+        let mut magic = [0u8; 6];
+        std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic)).is_ok() && &magic == b"\x93NUMPY"
+    };
+    let npy = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy")) || npy_magic();
+    (!npy).then_some((Kind::Psd, source))
 }
 
 /// `gwml fit`.

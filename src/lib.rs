@@ -18,7 +18,7 @@ pub mod timing;
 pub mod tradeoff;
 
 pub use gwml_compiler as compiler;
-pub use gwml_runtime::{npy, Error, Model, Outputs, Run, Scene, Value};
+pub use gwml_runtime::{batch, npy, spectrum, Error, Model, Outputs, Run, Scene, Value};
 
 /// Reads and checks a `.gw` file.
 pub fn compile_file(path: impl AsRef<std::path::Path>) -> Result<Model, Error> {

@@ -109,8 +109,10 @@ pub struct BindArgs {
     /// Set a param, in its declared unit (for `fit`, the starting value of a free param): `--set mc=30`.
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
-    /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`.
-    #[arg(long = "input", value_name = "NAME=PATH.npy")]
+    /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`; or a real input
+    /// over a frequency grid to a two-column noise-curve text file (Hz, value), interpolated log-log onto the
+    /// grid: `--input psd=FILE.txt` (PSD values) or `--input psd=asd:FILE.txt` (ASD values, squared).
+    #[arg(long = "input", value_name = "NAME=PATH")]
     pub input: Vec<String>,
 }
 

@@ -11,9 +11,11 @@
 //! # Ok::<(), gwml_runtime::Error>(())
 //! ```
 
+pub mod batch;
 pub mod fit;
 pub mod noise;
 pub mod npy;
+pub mod spectrum;
 
 use gwml_compiler::codegen::{self, BufferKind, Kernel};
 use gwml_compiler::diagnostics::did_you_mean;
@@ -46,6 +48,13 @@ pub enum Error {
     },
     /// Bad data or parameter values.
     Bind(String),
+    /// An item of a [`batch`] failed (the lowest such index).
+    Item {
+        /// The item's index (its row of values).
+        index: usize,
+        /// What went wrong with it.
+        error: Box<Error>,
+    },
 }
 
 impl fmt::Display for Error {
@@ -61,6 +70,7 @@ impl fmt::Display for Error {
                 }
                 Ok(())
             }
+            Error::Item { index, error } => write!(f, "batch item {index}: {error}"),
         }
     }
 }
