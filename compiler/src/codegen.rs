@@ -10,7 +10,10 @@
 //! depend on a reduction) therefore share a loop, and the gradients w.r.t.
 //! scalar params accumulate in registers with no intermediate arrays.
 //! Arrays are stored to a scratch buffer only when a later loop reads them
-//! or they are outputs. Broadcasts, grid coordinates and inputs are
+//! or they are outputs. A transform (`Op::Dft`) behaves like a reduction
+//! for scheduling (`epoch(dft(x)) = epoch(x) + 1`): its operand is stored,
+//! the call runs before the loops of its epoch, and they read its result
+//! from its buffer. Broadcasts, grid coordinates and inputs are
 //! recomputed (or reloaded) in each loop that uses them.
 //!
 //! # Kernel ABI
