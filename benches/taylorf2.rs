@@ -27,37 +27,8 @@ use gwml::{Model, Value};
 use std::hint::black_box;
 use std::time::Instant;
 
-const SOURCE: &str = "use std::taylorf2::{tf2_strain}
-use std::detector::{inner}
-
-module toy_psd(f: Hz) {
-    let y = f / 150 Hz
-    1e-47 s * (y ^ (-4.0) + 2.0 + 2.0 * y ^ 2.0)
-}
-
-scene w1_strain {
-    precision: f64
-    grid f = frequencies(from: 20 Hz, to: 1024 Hz, step: 0.125 Hz)
-    param mc: Msun = 28.09555579546043
-    param q = 0.8055555555555556
-    param tc: s = 0.0
-    param phic = 0.0
-    output h = tf2_strain(f, mc, q, 0.0, 0.0, 400 Mpc, tc, phic, pn_order: 7)
-}
-
-scene w1_fit {
-    precision: f64
-    grid f = frequencies(from: 20 Hz, to: 1024 Hz, step: 0.125 Hz)
-    input d: complex[f] s
-    param mc: Msun = 28.09555579546043 in 1.0..100.0
-    param q = 0.8055555555555556 in 0.02..1.0
-    param tc: s = 0.0 in -0.1..0.1
-    param phic = 0.0
-    let h = tf2_strain(f, mc, q, 0.0, 0.0, 400 Mpc, tc, phic, pn_order: 7)
-    output loss = 0.5 * inner(d - h, d - h, toy_psd(f), 0.125 Hz)
-    grad loss wrt [mc, q, tc, phic]
-}
-";
+/// Scenes `w1_strain` and `w1_fit`.
+const SOURCE: &str = include_str!("w1.gw");
 
 /// Params of the data (the true W1 system) and of the evaluation point.
 const TRUTH: [(&str, f64); 4] = [("mc", 28.09555579546043), ("q", 0.8055555555555556), ("tc", 0.0), ("phic", 0.0)];

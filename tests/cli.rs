@@ -4,18 +4,10 @@
 mod common;
 
 use common::chirp_reference as reference;
-use std::process::Command;
+#[path = "common/cli.rs"]
+mod cli;
 
-fn gwml(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_gwml")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().expect("gwml runs");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
-}
-
-fn json(args: &[&str]) -> serde_json::Value {
-    let (ok, stdout, stderr) = gwml(args);
-    assert!(ok, "gwml {args:?} failed: {stderr}");
-    serde_json::from_str(&stdout).expect("valid JSON")
-}
+use cli::{gwml, json};
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol * b.abs().max(1e-12)

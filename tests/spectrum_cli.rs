@@ -4,20 +4,12 @@
 
 use gwml::spectrum::{Kind, Spectrum};
 use std::path::PathBuf;
-use std::process::Command;
+#[path = "common/cli.rs"]
+mod cli;
+
+use cli::{gwml, json};
 
 const SAMPLE: &str = "fixtures/spectra/aligo_zerodet_highpower_asd.txt";
-
-fn gwml(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_gwml")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().expect("gwml runs");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
-}
-
-fn json(args: &[&str]) -> serde_json::Value {
-    let (ok, stdout, stderr) = gwml(args);
-    assert!(ok, "gwml {args:?} failed: {stderr}");
-    serde_json::from_str(&stdout).expect("valid JSON")
-}
 
 fn temp_dir() -> PathBuf {
     let dir = std::env::temp_dir().join(format!("gwml-spectrum-cli-{}", std::process::id()));

@@ -1,12 +1,10 @@
 //! `gwml tradeoff` end to end: the table, its files, and a failing setting
 //! reported in its row instead of aborting the sweep.
 
-use std::process::Command;
+#[path = "common/cli.rs"]
+mod cli;
 
-fn gwml(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_gwml")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().expect("gwml runs");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
-}
+use cli::gwml;
 
 #[test]
 fn tradeoff_sweeps_math_modes_and_writes_csv_json_and_png() {
