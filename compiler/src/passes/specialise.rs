@@ -9,7 +9,11 @@
 //! - `(s · a)^c → s^c · a^c` when `s` is a scalar and `a` a grid-only array
 //!   whose values are all positive (checked on the actual grid), so
 //!   `(π Mc f)^(-5/3)` costs one scalar pow per call and a table read per bin;
-//! - the same for `(a / s)^c` and `(s / a)^c`.
+//! - the same for `(a / s)^c` and `(s / a)^c`, and `cbrt(s · a) →
+//!   cbrt(s) · cbrt(a)` (any signs);
+//! - `log(s · a) → log s + log a` for the same s and a, also when `s · a`
+//!   is itself such a split power, so TaylorF2's `log v` with
+//!   `v = (π M f)^(1/3)` costs one scalar log per call and a table read.
 //!
 //! Then every real grid-only array that a non-grid-only instruction (or a
 //! result) uses, and that costs more than a load, becomes a table.
@@ -58,6 +62,9 @@ fn split_powers(func: &Function) -> Function {
     header.insts.clear();
     let mut b = Builder::new(header, true);
     let mut map: Vec<Value> = Vec::with_capacity(func.insts.len());
+    // Rewritten values known as a product `s^±1 · a` (new scalar s, new
+    // grid-only positive array a), so `log` of them splits too.
+    let mut products: std::collections::HashMap<Value, (Value, Value, f64)> = std::collections::HashMap::new();
     let positive = |v: Value| func.ty(v).elem == Elem::Real && grid_only[v.index()] && values[v.index()].iter().all(|x| *x > 0.0);
     let scalar_of = |v: Value| match func.insts[v.index()].op {
         Op::Broadcast(s, _) if func.ty(s).elem == Elem::Real => Some(s),
@@ -79,16 +86,55 @@ fn split_powers(func: &Function) -> Function {
                     let sp = b.emit(Op::PowConst(map[s.index()], c));
                     let sb = b.emit(Op::Broadcast(sp, g));
                     let ap = b.emit(Op::PowConst(map[a.index()], c));
-                    rewritten = Some(match (op, scalar_first) {
-                        (BinOp::Mul, _) => b.mul(sb, ap),
-                        (_, false) => b.div(ap, sb), // (a/s)^c = a^c / s^c
+                    let (v, arr, sign) = match (op, scalar_first) {
+                        (BinOp::Mul, _) => (b.mul(sb, ap), ap, 1.0),
+                        (_, false) => (b.div(ap, sb), ap, -1.0), // (a/s)^c = a^c / s^c
                         (_, true) => {
                             // (s/a)^c = s^c · a^(-c)
                             let an = b.emit(Op::PowConst(map[a.index()], (-cf).to_bits()));
-                            b.mul(sb, an)
+                            (b.mul(sb, an), an, 1.0)
                         }
-                    });
+                    };
+                    products.insert(v, (sp, arr, sign));
+                    rewritten = Some(v);
                 }
+            }
+        }
+        if let (Op::Unary(UnOp::Cbrt, base), Shape::Grid(g)) = (inst.op, inst.ty.shape) {
+            // cbrt(s · a) = cbrt(s) · cbrt(a) for any signs (cbrt is odd and multiplicative).
+            if let Op::Binary(BinOp::Mul, x, y) = func.insts[base.index()].op {
+                let pick = match (scalar_of(x), scalar_of(y)) {
+                    (Some(s), None) if grid_only[y.index()] => Some((s, y)),
+                    (None, Some(s)) if grid_only[x.index()] => Some((s, x)),
+                    _ => None,
+                };
+                if let Some((s, a)) = pick {
+                    let cs = b.unary(UnOp::Cbrt, map[s.index()]);
+                    let csb = b.emit(Op::Broadcast(cs, g));
+                    let ca = b.unary(UnOp::Cbrt, map[a.index()]);
+                    let v = b.mul(csb, ca);
+                    if positive(a) {
+                        products.insert(v, (cs, ca, 1.0));
+                    }
+                    rewritten = Some(v);
+                }
+            }
+        }
+        if let (Op::Unary(UnOp::Log, base), Shape::Grid(g)) = (inst.op, inst.ty.shape) {
+            // log(s^±1 · a) = ±log s + log a: a scalar log per call and a table.
+            let known = products.get(&map[base.index()]).copied().or_else(|| match func.insts[base.index()].op {
+                Op::Binary(BinOp::Mul, x, y) => match (scalar_of(x), scalar_of(y)) {
+                    (Some(s), None) if positive(y) => Some((map[s.index()], map[y.index()], 1.0)),
+                    (None, Some(s)) if positive(x) => Some((map[s.index()], map[x.index()], 1.0)),
+                    _ => None,
+                },
+                _ => None,
+            });
+            if let Some((sp, arr, sign)) = known {
+                let ls = b.unary(UnOp::Log, sp);
+                let lsb = b.emit(Op::Broadcast(ls, g));
+                let la = b.unary(UnOp::Log, arr);
+                rewritten = Some(if sign > 0.0 { b.add(lsb, la) } else { b.sub(la, lsb) });
             }
         }
         let v = match rewritten {
