@@ -437,10 +437,8 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
         .filter(|c| a.math.is_empty() || a.math.iter().any(|m| knobs(None, Some(*m)).math == Some(c.math)))
         .collect();
     let settings = Settings { configs, reps: a.reps, psd: a.psd.clone() };
-    let total =
-        settings.configs.len() + usize::from(!settings.configs.iter().any(|c| c.precision == Precision::F64 && c.math == MathMode::Exact));
     let bind = |run: &mut gwml::Run| bind_args(run, &a.bind).map_err(Error::Bind);
-    let mut progress = |i: usize, c: Config| eprintln!("[{}/{total}] precision {}, math {}", i + 1, c.precision, c.math);
+    let mut progress = |i: usize, count: usize, c: Config| eprintln!("[{}/{count}] precision {}, math {}", i + 1, c.precision, c.math);
     let rows = sweep(&model, a.scene.as_deref(), &settings, &bind, &mut progress).map_err(|e| match e {
         Error::Bind(m) if m.starts_with("error:") => m,
         other => render(other),

@@ -127,21 +127,22 @@ pub fn mismatch(a: &[C64], r: &[C64], psd: Option<&[f64]>) -> f64 {
 
 /// Runs the sweep: compiles the scene under each configuration, binds it
 /// with `bind`, times both kernels and compares with the f64-exact run.
-/// `progress` is told each configuration before it is measured.
+/// `progress` is told (index, count, configuration) before each is measured.
 pub fn sweep(
     model: &Model,
     scene: Option<&str>,
     settings: &Settings,
     bind: &dyn Fn(&mut Run) -> Result<(), Error>,
-    progress: &mut dyn FnMut(usize, Config),
+    progress: &mut dyn FnMut(usize, usize, Config),
 ) -> Result<Vec<Row>, Error> {
     let reference = Config { precision: Precision::F64, math: MathMode::Exact };
     let mut configs = vec![reference];
     configs.extend(settings.configs.iter().copied().filter(|c| *c != reference));
     let mut rows: Vec<Row> = Vec::new();
     let mut reference_out: Option<Outputs> = None;
+    let count = configs.len();
     for (i, config) in configs.into_iter().enumerate() {
-        progress(i, config);
+        progress(i, count, config);
         let compiled = model.scene_with(scene, Options { precision: Some(config.precision), math: Some(config.math) })?;
         let has_grads = !compiled.ir().grads.is_empty();
         let mut run = compiled.bind();

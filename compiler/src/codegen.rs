@@ -480,7 +480,12 @@ impl<'a> Gen<'a> {
         let ft = self.ft;
         let mut sig = Signature::new(self.module.isa().default_call_conv());
         let base = name.strip_suffix('f').filter(|b| MATH1.contains(b) || MATH2.contains(b) || *b == "sincos").unwrap_or(name);
-        if base == "sincos" {
+        if name.starts_with("gwml_dft_") {
+            // (plan, input, output, work): see `dft::gwml_dft_f64`.
+            for _ in 0..4 {
+                sig.params.push(AbiParam::new(self.ptr));
+            }
+        } else if base == "sincos" {
             sig.params.push(AbiParam::new(ft));
             sig.params.push(AbiParam::new(self.ptr));
             sig.params.push(AbiParam::new(self.ptr));
@@ -632,29 +637,21 @@ impl<'a> Gen<'a> {
         Ok(())
     }
 
+    /// The buffer holding table `t`.
+    fn table_buffer(&self, t: u32) -> usize {
+        self.layout.buffers.iter().position(|b| b.kind == BufferKind::Table(t as usize)).expect("tables have buffers")
+    }
+
     /// Calls the transform behind instruction `d` on buffers.
     fn emit_dft(&mut self, d: usize) -> Result<(), CodegenError> {
         let Op::Dft(_, a) = self.func.insts[d].op else { unreachable!("only transforms are scheduled as calls") };
         let input = match self.func.insts[a.index()].op {
             Op::Input(k) => k as usize,
-            Op::Table(t) => self.layout.buffers.iter().position(|b| b.kind == BufferKind::Table(t as usize)).expect("tables have buffers"),
+            Op::Table(t) => self.table_buffer(t),
             _ => self.sched.stored[&a.index()],
         };
         let (plan, work) = self.sched.dft_calls[&d];
-        let name = if self.f32() { "gwml_dft_f32" } else { "gwml_dft_f64" };
-        let f = match self.imports.get(name) {
-            Some(f) => *f,
-            None => {
-                let mut sig = Signature::new(self.module.isa().default_call_conv());
-                for _ in 0..4 {
-                    sig.params.push(AbiParam::new(self.ptr));
-                }
-                let id = self.module.declare_function(name, Linkage::Import, &sig).map_err(|e| CodegenError(e.to_string()))?;
-                let f = self.module.declare_func_in_func(id, self.b.func);
-                self.imports.insert(name, f);
-                f
-            }
-        };
+        let f = self.import(if self.f32() { "gwml_dft_f32" } else { "gwml_dft_f64" })?;
         let plan = self.b.ins().iconst(self.ptr, self.plans[plan].address());
         let args = [plan, self.bufs[input], self.bufs[self.sched.stored[&d]], self.bufs[work]];
         self.b.ins().call(f, &args);
@@ -828,7 +825,7 @@ impl<'a> Gen<'a> {
             }
             Op::Input(k) => self.load_elem(k as usize, lc.index, inst.ty.elem == Elem::Complex),
             Op::Table(t) => {
-                let buf = self.layout.buffers.iter().position(|b| b.kind == BufferKind::Table(t as usize)).expect("tables have buffers");
+                let buf = self.table_buffer(t);
                 self.load_elem(buf, lc.index, false)
             }
             // Transforms write their whole result before any loop reads it.
