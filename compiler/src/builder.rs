@@ -60,6 +60,7 @@ impl Builder {
             Op::Broadcast(a, g) => Ty { elem: t(a).elem, shape: Shape::Grid(g) },
             Op::Reduce(_, a) => Ty { elem: t(a).elem, shape: Shape::Scalar },
             Op::Dft(d, _) => Ty { elem: if d.inverse { Elem::Real } else { Elem::Complex }, shape: Shape::Grid(d.out) },
+            Op::Tensor(_, g, ..) => Ty { elem: Elem::Real, shape: Shape::Grid(g) },
         }
     }
 
@@ -212,6 +213,16 @@ impl Builder {
             },
             // Transforms are linear: the transform of zero is zero.
             Op::Dft(_, a) if zero(self, a) => Some(self.zero(ty)),
+            // Tensor ops are linear in each operand, except that pooling's
+            // first operand only chooses positions.
+            Op::Tensor(t, _, a, b)
+                if {
+                    let routing = matches!(t, TensorOp::PoolPick(_) | TensorOp::PoolScatter(_));
+                    (!routing && zero(self, a)) || (t.arity() == 2 && zero(self, b))
+                } =>
+            {
+                Some(self.zero(ty))
+            }
             Op::PowConst(a, c) if f64::from_bits(c) == 1.0 => Some(a),
             Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => Some(self.constant(C64::new(1.0, 0.0), ty)),
             Op::Select(_, a, b) if a == b => Some(a),

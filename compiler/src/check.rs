@@ -18,6 +18,8 @@ use crate::units::{self, Dim, Ratio};
 use num_complex::Complex64 as C64;
 use std::collections::{HashMap, HashSet};
 
+mod layers;
+
 /// A physical constant available by name in every expression.
 pub struct Constant {
     /// Name in source.
@@ -72,6 +74,15 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("rfft", "rfft(x, f): Fourier transform dt·Σ x_j e^(-2πi f t_j) of a real x over a time grid onto its spectrum grid f"),
     ("irfft", "irfft(X, t): inverse of rfft: df·Σ over the Hermitian spectrum X, a real array over the time grid t"),
     ("spacing", "spacing(g): the step between points of grid g (dt of a time grid, df of a frequency grid)"),
+    ("dense", "dense(x, w, b): w·x + b for a weight w of shape [m, k], any array x of k elements and an optional bias b [m]"),
+    (
+        "conv1d",
+        "conv1d(x, w, b, stride: 1, padding: 0, dilation: 1): convolution of x [c_in, n] (or a time series) with w [c_out, c_in, k], optional bias b [c_out]",
+    ),
+    ("max_pool", "max_pool(x, window, stride: window): the largest value of each window of x [channels, n]"),
+    ("avg_pool", "avg_pool(x, window, stride: window): the mean of each window of x [channels, n]"),
+    ("global_avg_pool", "global_avg_pool(x): the mean over positions of x [channels, n], one value per channel"),
+    ("index", "index(n): a grid of n points 0, 1, ..., n-1, e.g. classes (in `grid` declarations)"),
     ("frequencies", "frequencies(from:, to:, step:): a frequency grid (in `grid` declarations)"),
     ("spectrum", "spectrum(t): the grid of rfft bins of time grid t, 0 Hz to the Nyquist frequency (in `grid` declarations)"),
     ("times", "times(rate:, duration:): a time grid (in `grid` declarations)"),
@@ -144,10 +155,10 @@ impl<'a> Checker<'a> {
     /// modules no scene uses are still reported.
     pub fn resolve_module(&mut self, m: &ModuleDef) {
         let mut names: HashSet<String> = m.args.iter().map(|a| a.name.node.clone()).collect();
-        for l in &m.lets {
-            if !names.insert(l.name.node.clone()) {
+        for n in m.weights.iter().map(|w| &w.name).chain(m.lets.iter().map(|l| &l.name)) {
+            if !names.insert(n.node.clone()) {
                 self.error(
-                    Diagnostic::error(l.name.span, format!("`{}` is defined twice in module `{}`", l.name.node, m.name.node))
+                    Diagnostic::error(n.span, format!("`{}` is defined twice in module `{}`", n.node, m.name.node))
                         .with_help("rename one of the definitions"),
                 );
             }
@@ -269,7 +280,11 @@ impl<'a> Checker<'a> {
                     b.func.grids.push(grid);
                     scope.grids.insert(name.node.clone(), id);
                     let coord = b.push(Op::GridCoord(id));
-                    let dim = if b.func.grids[id.0 as usize].unit == "Hz" { Dim::FREQ } else { Dim::TIME };
+                    let dim = match b.func.grids[id.0 as usize].unit.as_str() {
+                        "Hz" => Dim::FREQ,
+                        "s" => Dim::TIME,
+                        _ => Dim::NONE,
+                    };
                     scope.values.insert(name.node.clone(), Tv { v: coord, dim });
                 }
             }
@@ -290,7 +305,7 @@ impl<'a> Checker<'a> {
                     if let Some((ity, dim, scale, unit)) = self.type_ann(ty, &scope) {
                         let default = default.as_ref().and_then(|e| self.input_default(&b.func, &scope, e, name, ity, dim));
                         let idx = b.func.inputs.len() as u32;
-                        b.func.inputs.push(ir::InputInfo { name: name.node.clone(), ty: ity, scale, unit, default });
+                        b.func.inputs.push(ir::InputInfo { name: name.node.clone(), ty: ity, scale, unit, default, trainable: false });
                         let v = b.push(Op::Input(idx));
                         scope.values.insert(name.node.clone(), Tv { v, dim });
                     } else {
@@ -361,6 +376,25 @@ impl<'a> Checker<'a> {
             return;
         }
         for w in wrt {
+            if self.modules.get(&w.node).is_some_and(|m| m.learned) {
+                let prefix = format!("{}.", w.node);
+                let weights: Vec<usize> = (0..b.func.inputs.len())
+                    .filter(|i| b.func.inputs[*i].trainable && b.func.inputs[*i].name.starts_with(&prefix))
+                    .collect();
+                if weights.is_empty() {
+                    self.error(
+                        Diagnostic::error(w.span, format!("learned component `{}` has no weights in this scene", w.node))
+                            .with_label("not called by any output, or it declares no `weight`")
+                            .with_help(format!("use it in an output, e.g. `output y = {}(x)`", w.node)),
+                    );
+                }
+                for input in weights {
+                    if !b.func.input_grads.iter().any(|g| g.output == oi && g.input == input) {
+                        b.func.input_grads.push(ir::InputGrad { output: oi, input, value: None });
+                    }
+                }
+                continue;
+            }
             match b.func.params.iter().position(|p| p.name == w.node) {
                 Some(pi) => {
                     if !b.func.grads.iter().any(|g| g.output == oi && g.param == pi) {
@@ -412,13 +446,24 @@ impl<'a> Checker<'a> {
         if callee.node == "spectrum" {
             return self.spectrum_grid(name, def.span, args, known, grids);
         }
+        if callee.node == "index" {
+            let [ast::Arg { name: None, value }] = args.as_slice() else {
+                self.error(
+                    Diagnostic::error(def.span, "`index` takes one number: the count of points")
+                        .with_help("e.g. `grid classes = index(6)`"),
+                );
+                return None;
+            };
+            let n = self.const_count(value, "the number of points", 1)? as usize;
+            return Some(ir::Grid { name: name.node.clone(), start: 0.0, step: 1.0, len: n, unit: String::new(), dims: vec![n] });
+        }
         let (wanted, dims): (&[&str], &[Dim]) = match callee.node.as_str() {
             "frequencies" => (&["from", "to", "step"], &[Dim::FREQ, Dim::FREQ, Dim::FREQ]),
             "times" => (&["rate", "duration"], &[Dim::FREQ, Dim::TIME]),
             _ => {
                 self.error(
                     Diagnostic::error(callee.span, format!("`{}` does not define a grid", callee.node))
-                        .with_help("use `frequencies(from:, to:, step:)`, `times(rate:, duration:)` or `spectrum(t)`"),
+                        .with_help("use `frequencies(from:, to:, step:)`, `times(rate:, duration:)`, `spectrum(t)` or `index(n)`"),
                 );
                 return None;
             }
@@ -491,7 +536,7 @@ impl<'a> Checker<'a> {
             );
             return None;
         }
-        Some(ir::Grid { name: name.node.clone(), start, step, len: len as usize, unit: unit.into() })
+        Some(ir::Grid { name: name.node.clone(), start, step, len: len as usize, unit: unit.into(), dims: vec![len as usize] })
     }
 
     /// `grid f = spectrum(t)`: the n/2 + 1 rfft bins of time grid `t`.
@@ -528,7 +573,14 @@ impl<'a> Checker<'a> {
             return None;
         };
         let n = t.len;
-        Some(ir::Grid { name: name.node.clone(), start: 0.0, step: 1.0 / (n as f64 * t.step), len: n / 2 + 1, unit: "Hz".into() })
+        Some(ir::Grid {
+            name: name.node.clone(),
+            start: 0.0,
+            step: 1.0 / (n as f64 * t.step),
+            len: n / 2 + 1,
+            unit: "Hz".into(),
+            dims: vec![n / 2 + 1],
+        })
     }
 
     fn param_decl(&mut self, p: &'a ast::ParamDecl) -> Option<(ir::ParamInfo, Dim)> {
@@ -1095,7 +1147,10 @@ impl<'a> Checker<'a> {
             self.error(self.unknown_function(callee));
             return None;
         }
-        if name == "frequencies" || name == "times" || name == "spectrum" {
+        if layers::is_layer(name) {
+            return self.layer_call(b, scope, callee, args, at);
+        }
+        if name == "frequencies" || name == "times" || name == "spectrum" || name == "index" {
             self.error(
                 Diagnostic::error(at, format!("`{name}(...)` defines a grid and can only appear in `grid NAME = {name}(...)`"))
                     .with_help("declare a grid in the scene and use its name"),
@@ -1459,6 +1514,9 @@ impl<'a> Checker<'a> {
         }
         if !ok {
             return None;
+        }
+        if !m.weights.is_empty() {
+            self.bind_weights(b, m, &mut inner)?;
         }
         for l in &m.lets {
             inner.lets.insert(l.name.node.clone(), LetSlot::Pending(l));

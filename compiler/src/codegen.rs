@@ -27,6 +27,7 @@
 use crate::dft::{gwml_dft_f32, gwml_dft_f64, DftPlan};
 use crate::ir::*;
 use crate::mathlib::{MathEmitter, SlowPath};
+use crate::tensor::{gwml_tensor_f32, gwml_tensor_f64};
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type};
 use cranelift_codegen::settings::{self, Configurable};
@@ -47,6 +48,8 @@ pub enum BufferKind {
     Output(usize),
     /// Precomputed table number `i` (index into [`Function::tables`], read only).
     Table(usize),
+    /// Gradient number `i` of [`Function::input_grads`] (an array).
+    InputGrad(usize),
 }
 
 /// One buffer the kernel reads or writes.
@@ -84,6 +87,9 @@ pub struct Layout {
     pub loops: usize,
     /// Working precision (element type of every buffer).
     pub precision: Precision,
+    /// Per entry of [`Function::input_grads`], the buffer holding it
+    /// (`None` for a scalar, which has a slot in `scalars`).
+    pub input_grads: Vec<Option<usize>>,
 }
 
 /// Code generation failed (a compiler bug or an unsupported target).
@@ -100,10 +106,12 @@ impl std::error::Error for CodegenError {}
 
 type KernelFn = unsafe extern "C" fn(*const f64, *const *mut u8, *mut f64);
 
-/// A planned transform a kernel calls; boxed so its address is stable.
+/// What a library call in a kernel points at (a planned transform or a
+/// tensor op's sizes); boxed so its address is stable.
 enum PlanBox {
     F64(Box<DftPlan<f64>>),
     F32(Box<DftPlan<f32>>),
+    Tensor(Box<TensorOp>),
 }
 
 impl PlanBox {
@@ -118,6 +126,7 @@ impl PlanBox {
         match self {
             PlanBox::F64(p) => p.work_floats(),
             PlanBox::F32(p) => p.work_floats(),
+            PlanBox::Tensor(_) => 0,
         }
     }
 
@@ -125,6 +134,7 @@ impl PlanBox {
         match self {
             PlanBox::F64(p) => &**p as *const DftPlan<f64> as i64,
             PlanBox::F32(p) => &**p as *const DftPlan<f32> as i64,
+            PlanBox::Tensor(t) => &**t as *const TensorOp as i64,
         }
     }
 }
@@ -187,14 +197,24 @@ struct Schedule {
     scalars: Vec<Vec<usize>>,
     /// Array values stored to a buffer: value index → buffer index.
     stored: HashMap<usize, usize>,
-    /// Transforms per epoch, run before that epoch's loops.
-    dfts: Vec<Vec<usize>>,
-    /// Per transform: its plan (index into the kernel's plans) and work buffer.
-    dft_calls: HashMap<usize, (usize, usize)>,
+    /// Library calls (transforms and tensor ops) per epoch, run before that epoch's loops.
+    calls: Vec<Vec<usize>>,
+    /// Per call: its plan (index into the kernel's plans) and work buffer.
+    call_plans: HashMap<usize, (usize, Option<usize>)>,
 }
 
 fn on_demand(op: &Op) -> bool {
     matches!(op, Op::Broadcast(..) | Op::GridCoord(_) | Op::Input(_) | Op::Table(_))
+}
+
+/// Ops computed by a library call on whole buffers, between fused loops.
+fn is_call(op: &Op) -> bool {
+    matches!(op, Op::Dft(..) | Op::Tensor(..))
+}
+
+/// Values that already live in a buffer of their own (no store needed).
+fn in_buffer(op: &Op) -> bool {
+    matches!(op, Op::Input(_) | Op::Table(_)) || is_call(op)
 }
 
 fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> Schedule {
@@ -202,13 +222,14 @@ fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> S
     let mut epoch = vec![0u32; n];
     for (i, inst) in func.insts.iter().enumerate() {
         epoch[i] = match inst.op {
-            Op::Reduce(_, a) | Op::Dft(_, a) => epoch[a.index()] + 1,
+            Op::Reduce(_, a) => epoch[a.index()] + 1,
+            op if is_call(&op) => op.operands().iter().map(|v| epoch[v.index()] + 1).max().unwrap_or(0),
             op => op.operands().iter().map(|v| epoch[v.index()]).max().unwrap_or(0),
         };
     }
     let max_epoch = epoch.iter().copied().max().unwrap_or(0);
     let mut scalars = vec![Vec::new(); max_epoch as usize + 1];
-    let mut dfts = vec![Vec::new(); max_epoch as usize + 1];
+    let mut calls = vec![Vec::new(); max_epoch as usize + 1];
     let mut loop_map: HashMap<(u32, GridId), Vec<usize>> = HashMap::new();
     let roots: Vec<Value> = func.roots();
     for (i, inst) in func.insts.iter().enumerate() {
@@ -219,16 +240,18 @@ fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> S
                 };
                 loop_map.entry((epoch[a.index()], g)).or_default().push(i);
             }
-            (Op::Dft(_, a), _) => {
-                dfts[epoch[i] as usize].push(i);
-                // A transform reads its operand from memory: values that are
+            (op, _) if is_call(&op) => {
+                calls[epoch[i] as usize].push(i);
+                // A call reads its operands from memory: values that are
                 // otherwise recomputed on demand get a loop that stores them.
-                let op = func.insts[a.index()].op;
-                let Shape::Grid(g) = func.ty(a).shape else { continue };
-                if on_demand(&op) && !matches!(op, Op::Input(_) | Op::Table(_)) {
-                    let members = loop_map.entry((epoch[a.index()], g)).or_default();
-                    if !members.contains(&a.index()) {
-                        members.push(a.index());
+                for a in op.operands() {
+                    let op = func.insts[a.index()].op;
+                    let Shape::Grid(g) = func.ty(a).shape else { continue };
+                    if on_demand(&op) && !in_buffer(&op) {
+                        let members = loop_map.entry((epoch[a.index()], g)).or_default();
+                        if !members.contains(&a.index()) {
+                            members.push(a.index());
+                        }
                     }
                 }
             }
@@ -265,18 +288,41 @@ fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> S
             need_store(o.value.index(), BufferKind::Output(oi), layout, &mut stored);
         }
     }
-    let mut dft_calls = HashMap::new();
-    for &d in dfts.iter().flatten() {
-        let Op::Dft(dft, a) = func.insts[d].op else { unreachable!("only transforms are listed") };
+    for (gi, g) in func.input_grads.iter().enumerate() {
+        let buffer = match g.value {
+            Some(v) if func.ty(v).shape != Shape::Scalar => Some(match stored.get(&v.index()) {
+                Some(&buf) => buf,
+                None => {
+                    need_store(v.index(), BufferKind::InputGrad(gi), layout, &mut stored);
+                    stored[&v.index()]
+                }
+            }),
+            _ => None,
+        };
+        layout.input_grads.push(buffer);
+    }
+    let mut call_plans = HashMap::new();
+    for &d in calls.iter().flatten() {
         need_store(d, BufferKind::Scratch, layout, &mut stored);
-        if !matches!(func.insts[a.index()].op, Op::Input(_) | Op::Table(_) | Op::Dft(..)) {
-            need_store(a.index(), BufferKind::Scratch, layout, &mut stored);
+        for a in func.insts[d].op.operands() {
+            if !in_buffer(&func.insts[a.index()].op) {
+                need_store(a.index(), BufferKind::Scratch, layout, &mut stored);
+            }
         }
-        let time = if dft.inverse { func.insts[d].ty.shape } else { func.ty(a).shape };
-        let plan = PlanBox::new(dft, func.len_of(time), func.precision);
-        layout.buffers.push(BufferInfo { kind: BufferKind::Scratch, len: plan.work_floats(), complex: false });
+        let plan = match func.insts[d].op {
+            Op::Dft(dft, a) => {
+                let time = if dft.inverse { func.insts[d].ty.shape } else { func.ty(a).shape };
+                PlanBox::new(dft, func.len_of(time), func.precision)
+            }
+            Op::Tensor(t, ..) => PlanBox::Tensor(Box::new(t)),
+            _ => unreachable!("only library calls are listed"),
+        };
+        let work = (plan.work_floats() > 0).then(|| {
+            layout.buffers.push(BufferInfo { kind: BufferKind::Scratch, len: plan.work_floats(), complex: false });
+            layout.buffers.len() - 1
+        });
         plans.push(plan);
-        dft_calls.insert(d, (plans.len() - 1, layout.buffers.len() - 1));
+        call_plans.insert(d, (plans.len() - 1, work));
     }
     for (li, (_, _, members)) in loops.iter().enumerate() {
         for &m in members {
@@ -289,7 +335,7 @@ fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> S
             }
         }
     }
-    Schedule { epoch, loops, scalars, stored, dfts, dft_calls }
+    Schedule { epoch, loops, scalars, stored, calls, call_plans }
 }
 
 /// A value in generated code: real part, and imaginary part for complex.
@@ -358,6 +404,8 @@ fn libm_symbols() -> Vec<(&'static str, *const u8)> {
         ("sincosf", libm::sincosf as *const u8),
         ("gwml_dft_f64", gwml_dft_f64 as *const u8),
         ("gwml_dft_f32", gwml_dft_f32 as *const u8),
+        ("gwml_tensor_f64", gwml_tensor_f64 as *const u8),
+        ("gwml_tensor_f32", gwml_tensor_f32 as *const u8),
     ]
 }
 
@@ -379,7 +427,8 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
         ctx.func.signature.params.push(AbiParam::new(ptr));
     }
     let id = module.declare_function("gwml_kernel", Linkage::Export, &ctx.func.signature).map_err(|e| err(&e))?;
-    let mut layout = Layout { buffers: Vec::new(), scalars: Vec::new(), scalar_slots: 0, loops: 0, precision: func.precision };
+    let mut layout =
+        Layout { buffers: Vec::new(), scalars: Vec::new(), scalar_slots: 0, loops: 0, precision: func.precision, input_grads: Vec::new() };
     for (i, input) in func.inputs.iter().enumerate() {
         layout.buffers.push(BufferInfo {
             kind: BufferKind::Input(i),
@@ -480,8 +529,9 @@ impl<'a> Gen<'a> {
         let ft = self.ft;
         let mut sig = Signature::new(self.module.isa().default_call_conv());
         let base = name.strip_suffix('f').filter(|b| MATH1.contains(b) || MATH2.contains(b) || *b == "sincos").unwrap_or(name);
-        if name.starts_with("gwml_dft_") {
-            // (plan, input, output, work): see `dft::gwml_dft_f64`.
+        if name.starts_with("gwml_dft_") || name.starts_with("gwml_tensor_") {
+            // (plan, input, output, work): see `dft::gwml_dft_f64`;
+            // (op, a, b, output): see `tensor::gwml_tensor_f64`.
             for _ in 0..4 {
                 sig.params.push(AbiParam::new(self.ptr));
             }
@@ -614,8 +664,8 @@ impl<'a> Gen<'a> {
                 let v = self.scalar_inst(i, params_ptr)?;
                 self.vals.insert(i, v);
             }
-            for &d in &self.sched.dfts[e] {
-                self.emit_dft(d)?;
+            for &d in &self.sched.calls[e] {
+                self.emit_call(d)?;
             }
             let loops: Vec<usize> = (0..self.sched.loops.len()).filter(|l| self.sched.loops[*l].0 as usize == e).collect();
             for l in loops {
@@ -642,18 +692,33 @@ impl<'a> Gen<'a> {
         self.layout.buffers.iter().position(|b| b.kind == BufferKind::Table(t as usize)).expect("tables have buffers")
     }
 
-    /// Calls the transform behind instruction `d` on buffers.
-    fn emit_dft(&mut self, d: usize) -> Result<(), CodegenError> {
-        let Op::Dft(_, a) = self.func.insts[d].op else { unreachable!("only transforms are scheduled as calls") };
-        let input = match self.func.insts[a.index()].op {
+    /// The buffer an array operand of a library call is read from.
+    fn operand_buffer(&self, a: Value) -> usize {
+        match self.func.insts[a.index()].op {
             Op::Input(k) => k as usize,
             Op::Table(t) => self.table_buffer(t),
             _ => self.sched.stored[&a.index()],
-        };
-        let (plan, work) = self.sched.dft_calls[&d];
-        let f = self.import(if self.f32() { "gwml_dft_f32" } else { "gwml_dft_f64" })?;
+        }
+    }
+
+    /// Calls the library routine behind instruction `d` (a transform or a
+    /// tensor op) on buffers.
+    fn emit_call(&mut self, d: usize) -> Result<(), CodegenError> {
+        let (plan, work) = self.sched.call_plans[&d];
         let plan = self.b.ins().iconst(self.ptr, self.plans[plan].address());
-        let args = [plan, self.bufs[input], self.bufs[self.sched.stored[&d]], self.bufs[work]];
+        let out = self.bufs[self.sched.stored[&d]];
+        let (f, args) = match self.func.insts[d].op {
+            Op::Dft(_, a) => {
+                let f = self.import(if self.f32() { "gwml_dft_f32" } else { "gwml_dft_f64" })?;
+                let work = self.bufs[work.expect("transforms have work buffers")];
+                (f, vec![plan, self.bufs[self.operand_buffer(a)], out, work])
+            }
+            Op::Tensor(_, _, a, b) => {
+                let f = self.import(if self.f32() { "gwml_tensor_f32" } else { "gwml_tensor_f64" })?;
+                (f, vec![plan, self.bufs[self.operand_buffer(a)], self.bufs[self.operand_buffer(b)], out])
+            }
+            _ => unreachable!("only library calls are scheduled as calls"),
+        };
         self.b.ins().call(f, &args);
         Ok(())
     }
@@ -828,8 +893,8 @@ impl<'a> Gen<'a> {
                 let buf = self.table_buffer(t);
                 self.load_elem(buf, lc.index, false)
             }
-            // Transforms write their whole result before any loop reads it.
-            Op::Dft(..) => self.load_elem(self.sched.stored[&i], lc.index, inst.ty.elem == Elem::Complex),
+            // Library calls write their whole result before any loop reads it.
+            Op::Dft(..) | Op::Tensor(..) => self.load_elem(self.sched.stored[&i], lc.index, inst.ty.elem == Elem::Complex),
             // Stored by an earlier loop: reload instead of recomputing.
             _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < lc.epoch => {
                 let buf = self.sched.stored[&i];

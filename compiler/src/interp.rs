@@ -75,6 +75,12 @@ pub fn interpret(func: &Function, params: &[f64], inputs: &[Tensor]) -> InterpRe
                 let n = if d.inverse { len } else { values[a.index()].len() };
                 crate::dft::apply(d, n, &values[a.index()])
             }
+            Op::Tensor(t, _, a, b) => {
+                let re = |v: Value| values[v.index()].iter().map(|z| z.re).collect::<Vec<f64>>();
+                let mut out = vec![0.0; t.out_len()];
+                crate::tensor::apply(t, &re(a), &re(b), &mut out);
+                out.into_iter().map(|x| C64::new(x, 0.0)).collect()
+            }
         };
         values.push(t);
     }

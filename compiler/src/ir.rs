@@ -186,6 +186,146 @@ impl Dft {
     }
 }
 
+/// Sizes of a one-dimensional convolution over `[channels × positions]`
+/// arrays (row-major, as PyTorch's `conv1d` without a batch axis):
+/// `y[o, t] = Σ_{c, j} w[o, c, j] · x[c, t·stride + j·dilation − padding]`,
+/// where samples outside `0..len_in` are zero.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Conv {
+    /// Input channels.
+    pub c_in: u32,
+    /// Output channels.
+    pub c_out: u32,
+    /// Input positions.
+    pub len_in: u32,
+    /// Output positions: `(len_in + 2·padding − dilation·(kernel−1) − 1) / stride + 1`.
+    pub len_out: u32,
+    /// Kernel taps.
+    pub kernel: u32,
+    /// Step between output positions.
+    pub stride: u32,
+    /// Zeros added on each side.
+    pub padding: u32,
+    /// Step between taps.
+    pub dilation: u32,
+}
+
+/// Sizes of a pooling window over `[channels × positions]` arrays:
+/// output `o` of channel `c` covers inputs `o·stride .. o·stride + window`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Pool {
+    /// Channels (pooled independently).
+    pub channels: u32,
+    /// Input positions.
+    pub len_in: u32,
+    /// Output positions: `(len_in − window) / stride + 1`.
+    pub len_out: u32,
+    /// Window length.
+    pub window: u32,
+    /// Step between windows.
+    pub stride: u32,
+}
+
+/// A dense-tensor operation on row-major real arrays: the layers of
+/// `learned` components. Like [`Dft`] it runs as a library call between
+/// fused loops (see `tensor`). The forward layers are `MatVec`, `Conv`,
+/// `PoolPick` (max pooling is `PoolPick(x, x)`), `PoolAvg` and `Spread`;
+/// every other variant is the transpose of one of them in one operand, so
+/// the adjoint of each op is again a `TensorOp` (see `passes::adjoint`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TensorOp {
+    /// `(W[m×k], x[k]) → y[m] = W·x`.
+    MatVec { m: u32, k: u32 },
+    /// `(W[m×k], y[m]) → x[k] = Wᵀ·y`.
+    MatTVec { m: u32, k: u32 },
+    /// `(y[m], x[k]) → W[m×k] = y ⊗ x`.
+    Outer { m: u32, k: u32 },
+    /// `(x, w) → y`, see [`Conv`].
+    Conv(Conv),
+    /// `(ȳ, w) → x̄`: the transpose of `Conv` in `x`.
+    ConvBackData(Conv),
+    /// `(ȳ, x) → w̄`: the transpose of `Conv` in `w`.
+    ConvBackWeight(Conv),
+    /// `(x, a) → y`: in each window, the element of `a` where `x` is
+    /// largest (the first such on ties).
+    PoolPick(Pool),
+    /// `(x, ȳ) → ā`: the transpose of `PoolPick` in `a` (each `ȳ` goes to
+    /// the position `PoolPick` took it from).
+    PoolScatter(Pool),
+    /// `(x) → y`: the mean of each window.
+    PoolAvg(Pool),
+    /// `(ȳ) → x̄`: the transpose of `PoolAvg`.
+    PoolAvgBack(Pool),
+    /// `(b[rows]) → y[rows×cols]`, `y[r, c] = b[r]` (a bias per channel).
+    Spread { rows: u32, cols: u32 },
+    /// `(y[rows×cols]) → b[rows]`, the sum of each row: the transpose of `Spread`.
+    SumRows { rows: u32, cols: u32 },
+}
+
+impl TensorOp {
+    /// Number of operands (1 or 2).
+    pub fn arity(&self) -> usize {
+        match self {
+            TensorOp::PoolAvg(_) | TensorOp::PoolAvgBack(_) | TensorOp::Spread { .. } | TensorOp::SumRows { .. } => 1,
+            _ => 2,
+        }
+    }
+
+    /// Element counts of the operands (the second is 0 for unary ops).
+    pub fn operand_lens(&self) -> [usize; 2] {
+        let u = |x: u32| x as usize;
+        match *self {
+            TensorOp::MatVec { m, k } => [u(m * k), u(k)],
+            TensorOp::MatTVec { m, k } => [u(m * k), u(m)],
+            TensorOp::Outer { m, k } => [u(m), u(k)],
+            TensorOp::Conv(c) => [u(c.c_in * c.len_in), u(c.c_out * c.c_in * c.kernel)],
+            TensorOp::ConvBackData(c) => [u(c.c_out * c.len_out), u(c.c_out * c.c_in * c.kernel)],
+            TensorOp::ConvBackWeight(c) => [u(c.c_out * c.len_out), u(c.c_in * c.len_in)],
+            TensorOp::PoolPick(p) => [u(p.channels * p.len_in), u(p.channels * p.len_in)],
+            TensorOp::PoolScatter(p) => [u(p.channels * p.len_in), u(p.channels * p.len_out)],
+            TensorOp::PoolAvg(p) => [u(p.channels * p.len_in), 0],
+            TensorOp::PoolAvgBack(p) => [u(p.channels * p.len_out), 0],
+            TensorOp::Spread { rows, .. } => [u(rows), 0],
+            TensorOp::SumRows { rows, cols } => [u(rows * cols), 0],
+        }
+    }
+
+    /// Element count of the result.
+    pub fn out_len(&self) -> usize {
+        let u = |x: u32| x as usize;
+        match *self {
+            TensorOp::MatVec { m, .. } => u(m),
+            TensorOp::MatTVec { k, .. } => u(k),
+            TensorOp::Outer { m, k } => u(m * k),
+            TensorOp::Conv(c) => u(c.c_out * c.len_out),
+            TensorOp::ConvBackData(c) => u(c.c_in * c.len_in),
+            TensorOp::ConvBackWeight(c) => u(c.c_out * c.c_in * c.kernel),
+            TensorOp::PoolPick(p) | TensorOp::PoolAvg(p) => u(p.channels * p.len_out),
+            TensorOp::PoolScatter(p) | TensorOp::PoolAvgBack(p) => u(p.channels * p.len_in),
+            TensorOp::Spread { rows, cols } => u(rows * cols),
+            TensorOp::SumRows { rows, .. } => u(rows),
+        }
+    }
+
+    /// The name in IR dumps.
+    pub fn name(&self) -> &'static str {
+        match self {
+            TensorOp::MatVec { .. } => "matvec",
+            TensorOp::MatTVec { .. } => "matvec_t",
+            TensorOp::Outer { .. } => "outer",
+            TensorOp::Conv(_) => "conv",
+            TensorOp::ConvBackData(_) => "conv_back_data",
+            TensorOp::ConvBackWeight(_) => "conv_back_weight",
+            TensorOp::PoolPick(_) => "pool_pick",
+            TensorOp::PoolScatter(_) => "pool_scatter",
+            TensorOp::PoolAvg(_) => "pool_avg",
+            TensorOp::PoolAvgBack(_) => "pool_avg_back",
+            TensorOp::Spread { .. } => "spread",
+            TensorOp::SumRows { .. } => "sum_rows",
+        }
+    }
+}
+
 /// An instruction's operation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Op {
@@ -216,6 +356,9 @@ pub enum Op {
     Reduce(Reduce, Value),
     /// A discrete Fourier transform of an array onto [`Dft::out`].
     Dft(Dft, Value),
+    /// A tensor operation whose result lives on the grid; unary ops repeat
+    /// their operand in the second slot (see [`Op::operands`]).
+    Tensor(TensorOp, GridId, Value, Value),
 }
 
 impl Op {
@@ -232,6 +375,8 @@ impl Op {
                 vec![a]
             }
             Op::Binary(_, a, b) => vec![a, b],
+            Op::Tensor(t, _, a, _) if t.arity() == 1 => vec![a],
+            Op::Tensor(_, _, a, b) => vec![a, b],
             Op::Select(c, a, b) => vec![c, a, b],
         }
     }
@@ -246,6 +391,11 @@ impl Op {
             Op::Dft(d, a) => Op::Dft(d, f(a)),
             Op::Binary(b, x, y) => Op::Binary(b, f(x), f(y)),
             Op::Select(c, x, y) => Op::Select(f(c), f(x), f(y)),
+            Op::Tensor(t, g, x, _) if t.arity() == 1 => {
+                let x = f(x);
+                Op::Tensor(t, g, x, x)
+            }
+            Op::Tensor(t, g, x, y) => Op::Tensor(t, g, f(x), f(y)),
             other => other,
         }
     }
@@ -260,7 +410,9 @@ pub struct Inst {
     pub ty: Ty,
 }
 
-/// A uniform grid: `len` points `start + i * step` (base units).
+/// A uniform grid: `len` points `start + i * step` (base units). Grids of
+/// tensors (the layers of `learned` components) are index grids (start 0,
+/// step 1) whose points are the row-major elements of an array of `dims`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Grid {
     /// Name in the scene.
@@ -273,6 +425,8 @@ pub struct Grid {
     pub len: usize,
     /// Unit of the coordinates, for display.
     pub unit: String,
+    /// Tensor dimensions (product `len`); `[len]` for a physical grid.
+    pub dims: Vec<usize>,
 }
 
 /// Working precision of generated code.
@@ -345,6 +499,9 @@ pub struct InputInfo {
     pub unit: String,
     /// Data used when none is bound (base units), from the input's default.
     pub default: Option<Vec<num_complex::Complex64>>,
+    /// A weight tensor of a `learned` component (initialised in `default`),
+    /// which `grad ... wrt` may name.
+    pub trainable: bool,
 }
 
 /// A real array over a grid computed at compile time.
@@ -378,6 +535,18 @@ pub struct GradOutput {
     pub value: Option<Value>,
 }
 
+/// A gradient with respect to a trainable input (a weight tensor):
+/// an array of the input's shape.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InputGrad {
+    /// Index into [`Function::outputs`].
+    pub output: usize,
+    /// Index into [`Function::inputs`].
+    pub input: usize,
+    /// The value; `None` until the adjoint pass runs.
+    pub value: Option<Value>,
+}
+
 /// A scene lowered to IR: everything one compiled kernel computes.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Function {
@@ -393,8 +562,10 @@ pub struct Function {
     pub insts: Vec<Inst>,
     /// Requested outputs.
     pub outputs: Vec<Output>,
-    /// Requested gradients.
+    /// Requested gradients with respect to params.
     pub grads: Vec<GradOutput>,
+    /// Requested gradients with respect to trainable inputs.
+    pub input_grads: Vec<InputGrad>,
     /// Grid-only arrays folded at compile time (see `passes::specialise`).
     pub tables: Vec<Table>,
     /// Working precision.
@@ -419,7 +590,26 @@ impl Function {
 
     /// All values the function returns (outputs, then computed gradients).
     pub fn roots(&self) -> Vec<Value> {
-        self.outputs.iter().map(|o| o.value).chain(self.grads.iter().filter_map(|g| g.value)).collect()
+        self.outputs
+            .iter()
+            .map(|o| o.value)
+            .chain(self.grads.iter().filter_map(|g| g.value))
+            .chain(self.input_grads.iter().filter_map(|g| g.value))
+            .collect()
+    }
+
+    /// Renames every root (outputs and computed gradients) through `map`,
+    /// after a pass renumbered the instructions.
+    pub fn remap_roots(&mut self, map: impl Fn(Value) -> Value) {
+        for o in &mut self.outputs {
+            o.value = map(o.value);
+        }
+        for g in &mut self.grads {
+            g.value = g.value.map(&map);
+        }
+        for g in &mut self.input_grads {
+            g.value = g.value.map(&map);
+        }
     }
 
     /// Checks SSA order and operand types; `Err` names the first bad instruction.
@@ -449,6 +639,15 @@ impl Function {
                         }
                         _ => false,
                     }
+                }
+                Op::Tensor(op, g, a, b) => {
+                    let lens = op.operand_lens();
+                    let real_array =
+                        |v: Value, len: usize| t(v).elem == Elem::Real && self.len_of(t(v).shape) == len && t(v).shape != Shape::Scalar;
+                    inst.ty == Ty { elem: Elem::Real, shape: Shape::Grid(g) }
+                        && self.len_of(inst.ty.shape) == op.out_len()
+                        && real_array(a, lens[0])
+                        && (op.arity() == 1 || real_array(b, lens[1]))
                 }
                 _ => true,
             };
@@ -491,6 +690,24 @@ impl Function {
                 g(d.out),
                 d.scale()
             ),
+            Op::Tensor(t, _, a, b) => {
+                let sizes = match t {
+                    TensorOp::MatVec { m, k } | TensorOp::MatTVec { m, k } | TensorOp::Outer { m, k } => format!("{m}x{k}"),
+                    TensorOp::Conv(c) | TensorOp::ConvBackData(c) | TensorOp::ConvBackWeight(c) => format!(
+                        "{}x{} -> {}x{}, kernel {}, stride {}, padding {}, dilation {}",
+                        c.c_in, c.len_in, c.c_out, c.len_out, c.kernel, c.stride, c.padding, c.dilation
+                    ),
+                    TensorOp::PoolPick(p) | TensorOp::PoolScatter(p) | TensorOp::PoolAvg(p) | TensorOp::PoolAvgBack(p) => {
+                        format!("{}x{} -> {}x{}, window {}, stride {}", p.channels, p.len_in, p.channels, p.len_out, p.window, p.stride)
+                    }
+                    TensorOp::Spread { rows, cols } | TensorOp::SumRows { rows, cols } => format!("{rows}x{cols}"),
+                };
+                if t.arity() == 1 {
+                    format!("{} %{} ({sizes})", t.name(), a.0)
+                } else {
+                    format!("{} %{}, %{} ({sizes})", t.name(), a.0, b.0)
+                }
+            }
         }
     }
 
@@ -534,6 +751,10 @@ impl fmt::Display for Function {
         for g in &self.grads {
             let v = g.value.map(|v| format!("%{}", v.0)).unwrap_or("(not computed)".into());
             let _ = writeln!(s, "  grad d{}/d{} = {v}", self.outputs[g.output].name, self.params[g.param].name);
+        }
+        for g in &self.input_grads {
+            let v = g.value.map(|v| format!("%{}", v.0)).unwrap_or("(not computed)".into());
+            let _ = writeln!(s, "  grad d{}/d{} = {v}", self.outputs[g.output].name, self.inputs[g.input].name);
         }
         f.write_str(&s)
     }

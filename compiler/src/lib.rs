@@ -17,6 +17,7 @@ pub mod passes;
 pub mod source;
 pub mod stdlib;
 pub mod syntax;
+pub mod tensor;
 pub mod units;
 
 pub use driver::{CompileError, Options, Program, ScenePipeline, Stats};

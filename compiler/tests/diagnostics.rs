@@ -355,3 +355,63 @@ fn spectrum_of_a_frequency_grid() {
     assert_reports(&err, "is not a time grid");
     insta::assert_snapshot!(err.render(false));
 }
+
+/// The scene every learned-component test below calls `net` from.
+fn learned_scene(body: &str) -> String {
+    format!(
+        "learned net(x) {{\n{body}\n}}\nscene s {{\n  grid t = times(rate: 16 Hz, duration: 1 s)\n  input x: real[t] = 0.0\n  output y = net(x)\n  grad y wrt net\n}}\n"
+    )
+}
+
+#[test]
+fn dense_weight_of_the_wrong_shape() {
+    let err = fail(&learned_scene("  weight w: [3, 15] = glorot\n  sum(dense(x, w))"));
+    assert_reports(&err, "the weight of `dense` has shape [3, 15], but the layer needs [3, 16]");
+    assert_helps(&err, "weight NAME: [3, 16]");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
+fn conv1d_kernel_longer_than_its_input_and_bad_channels() {
+    let err = fail(&learned_scene(
+        "  weight k: [2, 1, 9] = he\n  weight k2: [4, 3, 2] = he\n  let h = conv1d(x, k, dilation: 3)\n  sum(h) + sum(conv1d(conv1d(x, k), k2))",
+    ));
+    assert_reports(&err, "the kernel spans 25 samples but the input has 16");
+    assert_reports(&err, "the weight of `conv1d` has shape [4, 3, 2], but the layer needs [4, 2, 2]");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
+fn weight_with_an_unknown_initialiser_or_bad_dimension() {
+    let err = fail(&learned_scene(
+        "  weight a: [4] = glorrot\n  weight b: [2.5] = zeros\n  weight c: [3] = normal(seed: 1)\n  sum(a) + sum(b) + sum(c)",
+    ));
+    assert_helps(&err, "did you mean `glorot`?");
+    assert_reports(&err, "a weight dimension must be a whole number");
+    assert_reports(&err, "`normal` needs `std`");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
+fn weight_in_a_plain_module() {
+    let err = fail("module m(x) {\n  weight w: [2] = zeros\n  x\n}\nscene s {\n  param p = 1.0\n  output y = m(p)\n}\n");
+    assert_reports(&err, "module `m` declares a weight");
+    assert_helps(&err, "learned m(...)");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
+fn gradient_with_respect_to_an_unused_learned_component() {
+    let err = fail(
+        "learned net(x) {\n  weight w: [2] = zeros\n  sum(w) * x\n}\nscene s {\n  param p = 1.0\n  output y = p * p\n  grad y wrt net\n}\n",
+    );
+    assert_reports(&err, "learned component `net` has no weights in this scene");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
+fn layer_on_a_value_with_units() {
+    let err = fail(&learned_scene("  weight w: [2, 16] = glorot\n  sum(dense(x * 3 Hz, w))"));
+    assert_reports(&err, "`dense` needs a dimensionless real array here");
+    insta::assert_snapshot!(err.render(false));
+}

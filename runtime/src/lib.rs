@@ -135,6 +135,7 @@ impl Scene {
     fn new(pipeline: ScenePipeline) -> Result<Scene, Error> {
         let mut fwd = pipeline.pruned.clone();
         fwd.grads.clear();
+        fwd.input_grads.clear();
         let forward_ir = gwml_compiler::passes::specialise(&gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd)));
         let forward = codegen::compile(&forward_ir).map_err(Error::Codegen)?;
         Ok(Scene { pipeline, forward_ir, forward, gradient: OnceLock::new() })
@@ -168,6 +169,7 @@ impl Scene {
             params: f.params.iter().map(|p| p.default).collect(),
             inputs: f.inputs.iter().map(|i| i.default.clone()).collect(),
             scratch: Vec::new(),
+            allocated_for: None,
             filled_for: None,
             scalars: Vec::new(),
         }
@@ -232,6 +234,10 @@ pub struct Outputs {
     pub values: Vec<(String, Value)>,
     /// Gradients `(output, param, d output / d param)` per declared unit of the param.
     pub grads: Vec<(String, String, f64)>,
+    /// Gradients `(output, input, d output / d input)` with respect to
+    /// trainable inputs (the weights of learned components), one value per
+    /// element, per declared unit of the input.
+    pub input_grads: Vec<(String, String, Vec<f64>)>,
 }
 
 impl Outputs {
@@ -250,6 +256,14 @@ impl Outputs {
             Value::Real(x) => Ok(*x),
             _ => Err(Error::Bind(format!("output `{name}` is not a real scalar"))),
         }
+    }
+
+    /// The gradient of `output` with respect to trainable input `input` (a weight tensor).
+    pub fn input_grad(&self, output: &str, input: &str) -> Result<&[f64], Error> {
+        self.input_grads.iter().find(|(o, i, _)| o == output && i == input).map(|g| g.2.as_slice()).ok_or_else(|| {
+            let names: Vec<String> = self.input_grads.iter().map(|(o, i, _)| format!("{o}/{i}")).collect();
+            unknown("gradient", &format!("{output}/{input}"), names.iter().map(|s| s.as_str()))
+        })
     }
 
     /// The gradient of `output` with respect to `param`.
@@ -272,8 +286,10 @@ pub struct Run<'s> {
     params: Vec<Option<f64>>,
     inputs: Vec<Option<Vec<C64>>>,
     scratch: Vec<(bool, Buffer)>,
-    /// Which kernel's layout `scratch` was filled for (forward or gradient),
-    /// or `None` when inputs changed since: input buffers are refilled only then.
+    /// Which kernel's layout `scratch` was allocated for (forward or gradient).
+    allocated_for: Option<*const Kernel>,
+    /// Which kernel's input buffers hold the bound inputs, or `None` when
+    /// inputs changed since: input buffers are refilled only then.
     filled_for: Option<*const Kernel>,
     scalars: Vec<f64>,
 }
@@ -359,8 +375,14 @@ impl<'s> Run<'s> {
         // (Re)allocate buffers for this kernel's layout.
         let floats = |b: &codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
         if self.filled_for != Some(kernel as *const Kernel) {
-            self.scratch =
-                layout.buffers.iter().map(|b| Ok((b.complex, Buffer::new(layout.precision, floats(b))?))).collect::<Result<_, Error>>()?;
+            if self.allocated_for != Some(kernel as *const Kernel) {
+                self.scratch = layout
+                    .buffers
+                    .iter()
+                    .map(|b| Ok((b.complex, Buffer::new(layout.precision, floats(b))?)))
+                    .collect::<Result<_, Error>>()?;
+                self.allocated_for = Some(kernel as *const Kernel);
+            }
             for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
                 match info.kind {
                     BufferKind::Input(i) => {
@@ -376,7 +398,7 @@ impl<'s> Run<'s> {
                         let data: Vec<C64> = func.tables[k].data.iter().map(|x| C64::new(*x, 0.0)).collect();
                         fill(buf, &data, false);
                     }
-                    BufferKind::Scratch | BufferKind::Output(_) => {}
+                    BufferKind::Scratch | BufferKind::Output(_) | BufferKind::InputGrad(_) => {}
                 }
             }
             self.filled_for = Some(kernel as *const Kernel);
@@ -421,13 +443,26 @@ impl<'s> Run<'s> {
             let p = &func.params[g.param];
             grads.push((func.outputs[g.output].name.clone(), p.name.clone(), x * p.scale));
         }
+        let mut input_grads = Vec::new();
+        for (g, buffer) in func.input_grads.iter().zip(&layout.input_grads) {
+            let Some(v) = g.value else { continue };
+            let scale = func.inputs[g.input].scale;
+            let data = match buffer {
+                Some(k) => (0..layout.buffers[*k].len).map(|i| self.scratch[*k].1.get(i) * scale).collect(),
+                None => match read_scalar(v) {
+                    Value::Real(x) => vec![x * scale],
+                    _ => continue,
+                },
+            };
+            input_grads.push((func.outputs[g.output].name.clone(), func.inputs[g.input].name.clone(), data));
+        }
         let params_used = func.params.iter().zip(&self.params).map(|(p, v)| (p.name.clone(), v.unwrap_or(f64::NAN))).collect();
         if let Some((name, _)) = values.iter().find(|(_, v)| !value_finite(v)) {
             return Err(Error::Bind(format!(
                 "output `{name}` is not finite (NaN or infinity) at these params; check params against their bounds and the data"
             )));
         }
-        Ok(Outputs { params: params_used, values, grads })
+        Ok(Outputs { params: params_used, values, grads, input_grads })
     }
 }
 

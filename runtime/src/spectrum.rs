@@ -208,7 +208,7 @@ mod tests {
     use super::*;
 
     fn grid(start: f64, step: f64, len: usize) -> Grid {
-        Grid { name: "f".into(), start, step, len, unit: "Hz".into() }
+        Grid { name: "f".into(), start, step, len, unit: "Hz".into(), dims: vec![len] }
     }
 
     #[test]
@@ -223,7 +223,7 @@ mod tests {
     #[test]
     fn time_grids_are_refused() {
         let s = Spectrum::parse("10 4\n100 1\n", "t", Kind::Psd).unwrap();
-        let t = Grid { name: "t".into(), start: 0.0, step: 0.5, len: 4, unit: "s".into() };
+        let t = Grid { name: "t".into(), start: 0.0, step: 0.5, len: 4, unit: "s".into(), dims: vec![4] };
         let e = s.on_grid(&t).unwrap_err().to_string();
         assert!(e.contains("not Hz"), "{e}");
     }

@@ -11,7 +11,7 @@ use gwml_runtime::{Model, Value};
 const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/spectra/aligo_zerodet_highpower_asd.txt");
 
 fn grid(start: f64, step: f64, len: usize) -> Grid {
-    Grid { name: "f".into(), start, step, len, unit: "Hz".into() }
+    Grid { name: "f".into(), start, step, len, unit: "Hz".into(), dims: vec![len] }
 }
 
 fn parse(text: &str, kind: Kind) -> Spectrum {

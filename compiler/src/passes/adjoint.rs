@@ -22,19 +22,23 @@ pub fn adjoint(func: &Function) -> Function {
     let mut b = Builder::new(func.clone(), true);
     let n = func.insts.len();
     let mut grads = func.grads.clone();
+    let mut input_grads = func.input_grads.clone();
+    let mut outputs: Vec<usize> = grads.iter().map(|g| g.output).chain(input_grads.iter().map(|g| g.output)).collect();
+    outputs.dedup();
     let mut outputs_done: Vec<usize> = Vec::new();
-    for gi in 0..grads.len() {
-        let out = grads[gi].output;
+    for out in outputs {
         if outputs_done.contains(&out) {
             continue;
         }
         outputs_done.push(out);
         let params: Vec<u32> = grads.iter().filter(|g| g.output == out).map(|g| g.param as u32).collect();
+        let inputs: Vec<u32> = input_grads.iter().filter(|g| g.output == out).map(|g| g.input as u32).collect();
         // Forward activity.
         let mut active = vec![false; n];
         for (i, inst) in func.insts.iter().enumerate() {
             active[i] = match inst.op {
                 Op::Param(p) => params.contains(&p),
+                Op::Input(k) => inputs.contains(&k),
                 op => op.operands().iter().any(|v| active[v.index()]),
             };
         }
@@ -61,23 +65,29 @@ pub fn adjoint(func: &Function) -> Function {
                 adj.insert(operand.index(), acc);
             }
         }
-        for g in grads.iter_mut().filter(|g| g.output == out) {
+        // The adjoint of a param or input: the sum over every instruction that reads it.
+        let total_of = |b: &mut Builder, op: Op, ty: Ty| {
             let mut total: Option<Value> = None;
             for (i, inst) in func.insts.iter().enumerate() {
-                if inst.op == Op::Param(g.param as u32) {
-                    if let Some(a) = adj.get(&i) {
-                        total = Some(match total {
-                            Some(t) => b.add(t, *a),
-                            None => *a,
-                        });
-                    }
+                if let (true, Some(a)) = (inst.op == op, adj.get(&i)) {
+                    total = Some(match total {
+                        Some(t) => b.add(t, *a),
+                        None => *a,
+                    });
                 }
             }
-            g.value = Some(total.unwrap_or_else(|| b.real(0.0)));
+            total.unwrap_or_else(|| b.zero(ty))
+        };
+        for g in grads.iter_mut().filter(|g| g.output == out) {
+            g.value = Some(total_of(&mut b, Op::Param(g.param as u32), Ty::REAL));
+        }
+        for g in input_grads.iter_mut().filter(|g| g.output == out) {
+            g.value = Some(total_of(&mut b, Op::Input(g.input as u32), func.inputs[g.input].ty));
         }
     }
     let mut out = b.func;
     out.grads = grads;
+    out.input_grads = input_grads;
     out
 }
 
@@ -302,6 +312,7 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value, active: &[bool]) -> Vec
             let Shape::Grid(grid) = b.ty(a).shape else { return vec![] };
             vec![(a, b.emit(Op::Dft(Dft { inverse: !d.inverse, out: grid, ..d }, g)))]
         }
+        Op::Tensor(t, _, x, y) => tensor_rule(b, t, x, y, g).into_iter().filter(|(v, _)| want(*v)).collect(),
         Op::Reduce(Reduce::Max, a) => {
             // The maximum's adjoint is shared equally among tied elements
             // (a subgradient; JAX's convention).
@@ -316,5 +327,32 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value, active: &[bool]) -> Vec
             let gb = b.emit(Op::Broadcast(share, grid));
             vec![(a, b.mul(gb, mask))]
         }
+    }
+}
+
+/// Adjoints of `z = t(x, y)` with adjoint `g`: every tensor op is linear in
+/// each operand, so each contribution is a transpose (see [`TensorOp`]);
+/// pooling's first operand only chooses positions and gets none.
+fn tensor_rule(b: &mut Builder, t: TensorOp, x: Value, y: Value, g: Value) -> Vec<(Value, Value)> {
+    let grid = |b: &Builder, v: Value| match b.ty(v).shape {
+        Shape::Grid(grid) => grid,
+        Shape::Scalar => unreachable!("tensor operands are arrays (checked by `Function::verify`)"),
+    };
+    let (gx, gy) = (grid(b, x), grid(b, y));
+    let op = |b: &mut Builder, t: TensorOp, out: GridId, p: Value, q: Value| b.emit(Op::Tensor(t, out, p, q));
+    use TensorOp as T;
+    match t {
+        T::MatVec { m, k } => vec![(x, op(b, T::Outer { m, k }, gx, g, y)), (y, op(b, T::MatTVec { m, k }, gy, x, g))],
+        T::MatTVec { m, k } => vec![(x, op(b, T::Outer { m, k }, gx, y, g)), (y, op(b, T::MatVec { m, k }, gy, x, g))],
+        T::Outer { m, k } => vec![(x, op(b, T::MatVec { m, k }, gx, g, y)), (y, op(b, T::MatTVec { m, k }, gy, g, x))],
+        T::Conv(c) => vec![(x, op(b, T::ConvBackData(c), gx, g, y)), (y, op(b, T::ConvBackWeight(c), gy, g, x))],
+        T::ConvBackData(c) => vec![(x, op(b, T::Conv(c), gx, g, y)), (y, op(b, T::ConvBackWeight(c), gy, x, g))],
+        T::ConvBackWeight(c) => vec![(x, op(b, T::Conv(c), gx, y, g)), (y, op(b, T::ConvBackData(c), gy, x, g))],
+        T::PoolPick(p) => vec![(y, op(b, T::PoolScatter(p), gy, x, g))],
+        T::PoolScatter(p) => vec![(y, op(b, T::PoolPick(p), gy, x, g))],
+        T::PoolAvg(p) => vec![(x, op(b, T::PoolAvgBack(p), gx, g, g))],
+        T::PoolAvgBack(p) => vec![(x, op(b, T::PoolAvg(p), gx, g, g))],
+        T::Spread { rows, cols } => vec![(x, op(b, T::SumRows { rows, cols }, gx, g, g))],
+        T::SumRows { rows, cols } => vec![(x, op(b, T::Spread { rows, cols }, gx, g, g))],
     }
 }

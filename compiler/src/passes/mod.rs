@@ -29,11 +29,6 @@ pub fn simplify(func: &Function) -> Function {
         map.push(b.emit(op));
     }
     let mut out = b.func;
-    for o in &mut out.outputs {
-        o.value = map[o.value.index()];
-    }
-    for g in &mut out.grads {
-        g.value = g.value.map(|v| map[v.index()]);
-    }
+    out.remap_roots(|v| map[v.index()]);
     prune(&out)
 }

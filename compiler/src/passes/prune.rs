@@ -26,11 +26,6 @@ pub fn prune(func: &Function) -> Function {
             out.insts.push(crate::ir::Inst { op, ty: inst.ty });
         }
     }
-    for o in &mut out.outputs {
-        o.value = map[o.value.index()];
-    }
-    for g in &mut out.grads {
-        g.value = g.value.map(|v| map[v.index()]);
-    }
+    out.remap_roots(|v| map[v.index()]);
     out
 }

@@ -147,12 +147,7 @@ fn split_powers(func: &Function) -> Function {
         map.push(v);
     }
     let mut out = b.func;
-    for o in &mut out.outputs {
-        o.value = map[o.value.index()];
-    }
-    for g in &mut out.grads {
-        g.value = g.value.map(|v| map[v.index()]);
-    }
+    out.remap_roots(|v| map[v.index()]);
     super::prune(&out)
 }
 

@@ -36,18 +36,38 @@ pub struct UseDecl {
     pub span: Span,
 }
 
-/// A module: a pure function written as equations.
+/// A module: a pure function written as equations; or, with weights, a
+/// `learned` component whose weight tensors are trained.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModuleDef {
     /// Its name.
     pub name: Ident,
     /// Formal arguments.
     pub args: Vec<ModuleArg>,
+    /// Whether it was written `learned` (it may declare weights).
+    pub learned: bool,
+    /// `weight` declarations (learned components only).
+    pub weights: Vec<WeightDecl>,
     /// `let` bindings in the body.
     pub lets: Vec<LetDecl>,
     /// The value the module returns.
     pub result: Expr,
     /// The whole definition.
+    pub span: Span,
+}
+
+/// `weight k: [8, 1, 16] = he(seed: 3)`: a trainable tensor of a learned
+/// component, with its shape and initialiser.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightDecl {
+    /// Its name inside the component.
+    pub name: Ident,
+    /// Dimensions (constant expressions).
+    pub dims: Vec<Expr>,
+    /// The initialiser: `zeros`, `ones`, `normal(std: s)`, `glorot`, `he`,
+    /// each optionally with `seed: n`.
+    pub init: Expr,
+    /// The whole declaration.
     pub span: Span,
 }
 

@@ -22,7 +22,8 @@ pub enum Token {
     CallOpen,
 }
 
-const KEYWORDS: &[&str] = &["use", "module", "scene", "let", "param", "input", "output", "grad", "wrt", "grid", "in", "if", "else"];
+const KEYWORDS: &[&str] =
+    &["use", "module", "learned", "weight", "scene", "let", "param", "input", "output", "grad", "wrt", "grid", "in", "if", "else"];
 
 const OPS: &[&str] =
     &["::", "..", "==", "!=", "<=", ">=", "->", "+", "-", "*", "/", "^", "<", ">", "=", ":", ",", ";", "(", ")", "[", "]", "{", "}"];

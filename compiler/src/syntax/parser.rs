@@ -128,7 +128,7 @@ fn let_decl<'a, I: ValueInput<'a, Token = Token, Span = Span>>(keyword: &'static
         .map(|((name, ty), value)| LetDecl { name, ty, value })
 }
 
-const STMT_STARTS: &[&str] = &["grid", "input", "param", "let", "output", "grad", "use", "module", "scene"];
+const STMT_STARTS: &[&str] = &["grid", "input", "param", "let", "output", "grad", "use", "module", "learned", "weight", "scene"];
 
 /// Skips a broken statement: at least one token, then up to the next
 /// statement keyword or closing brace.
@@ -175,26 +175,46 @@ fn item<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, 
         .then(op(":").ignore_then(type_ann()).or_not())
         .then(op("=").ignore_then(expr()).or_not())
         .map(|((name, ty), default)| ModuleArg { name, ty, default });
-    let module = kw("module")
+    let weight = kw("weight")
         .ignore_then(ident())
+        .then_ignore(op(":"))
+        .then(expr().separated_by(op(",")).allow_trailing().collect::<Vec<_>>().delimited_by(op("["), op("]")))
+        .then_ignore(op("="))
+        .then(expr())
+        .map_with(|((name, dims), init), e| WeightDecl { name, dims, init, span: e.span() });
+    let body_stmt = let_decl("let").map(BodyStmt::Let).or(weight.map(BodyStmt::Weight)).then_ignore(op(";").or_not());
+    let module = kw("module")
+        .to(false)
+        .or(kw("learned").to(true))
+        .then(ident())
         .then(
             module_arg.separated_by(op(",")).allow_trailing().collect::<Vec<_>>().delimited_by(just(Token::CallOpen).or(op("(")), op(")")),
         )
-        .then(
-            let_decl("let")
-                .then_ignore(op(";").or_not())
-                .repeated()
-                .collect::<Vec<_>>()
-                .then(expr())
-                .then_ignore(op(";").or_not())
-                .delimited_by(op("{"), op("}")),
-        )
-        .map_with(|((name, args), (lets, result)), e| Item::Module(ModuleDef { name, args, lets, result, span: e.span() }));
+        .then(body_stmt.repeated().collect::<Vec<_>>().then(expr()).then_ignore(op(";").or_not()).delimited_by(op("{"), op("}")))
+        .map_with(|(((learned, name), args), (body, result)), e| {
+            let (mut lets, mut weights) = (Vec::new(), Vec::new());
+            for st in body {
+                match st {
+                    BodyStmt::Let(l) => lets.push(l),
+                    BodyStmt::Weight(w) => weights.push(w),
+                }
+            }
+            Item::Module(ModuleDef { name, args, learned, weights, lets, result, span: e.span() })
+        });
     let scene = kw("scene")
         .ignore_then(ident())
         .then(scene_stmt().repeated().collect::<Vec<_>>().delimited_by(op("{"), op("}")))
         .map_with(|(name, stmts), e| Item::Scene(SceneDef { name, stmts: stmts.into_iter().flatten().collect(), span: e.span() }));
-    choice((use_, module, scene)).map(Some).recover_with(via_parser(skip_stmt().to(None))).labelled("item (`use`, `module` or `scene`)")
+    choice((use_, module, scene))
+        .map(Some)
+        .recover_with(via_parser(skip_stmt().to(None)))
+        .labelled("item (`use`, `module`, `learned` or `scene`)")
+}
+
+/// A statement of a module or learned body, before they are sorted.
+enum BodyStmt {
+    Let(LetDecl),
+    Weight(WeightDecl),
 }
 
 /// Parses the text of file `file`. Always returns a tree (possibly partial)

@@ -29,7 +29,11 @@ pub fn print_ast(ast: &SourceFileAst) -> String {
                         s
                     })
                     .collect();
-                let _ = writeln!(out, "module {}({})", m.name.node, args.join(", "));
+                let _ = writeln!(out, "{} {}({})", if m.learned { "learned" } else { "module" }, m.name.node, args.join(", "));
+                for w in &m.weights {
+                    let dims: Vec<_> = w.dims.iter().map(expr).collect();
+                    let _ = writeln!(out, "  weight {}: [{}] = {}", w.name.node, dims.join(", "), expr(&w.init));
+                }
                 for l in &m.lets {
                     let _ = writeln!(out, "  let {}{} = {}", l.name.node, opt_ty(&l.ty), expr(&l.value));
                 }

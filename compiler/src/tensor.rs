@@ -1,0 +1,292 @@
+//! The dense-tensor operations of [`TensorOp`] (the layers of `learned`
+//! components) on row-major real arrays. Generated kernels call
+//! [`gwml_tensor_f64`] / [`gwml_tensor_f32`] between fused loops; the
+//! interpreter calls [`apply`]. Every transpose op is tested here against
+//! the definition `⟨A x, y⟩ = ⟨x, Aᵀ y⟩`, which is what makes the adjoint
+//! pass's rules correct.
+
+use crate::ir::{Conv, Pool, TensorOp};
+use num_traits::Float;
+
+/// Computes `op` on operands `a` and `b` (ignored for unary ops) into
+/// `out`, which is overwritten. Slices must have the lengths
+/// [`TensorOp::operand_lens`] and [`TensorOp::out_len`] give; shorter ones
+/// are a caller bug and panic on indexing rather than read out of bounds.
+pub fn apply<T: Float>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
+    let u = |x: u32| x as usize;
+    out.fill(T::zero());
+    match op {
+        TensorOp::MatVec { m, k } => {
+            let (m, k) = (u(m), u(k));
+            for (r, o) in out[..m].iter_mut().enumerate() {
+                *o = dot(&a[r * k..(r + 1) * k], &b[..k]);
+            }
+        }
+        TensorOp::MatTVec { m, k } => {
+            let (m, k) = (u(m), u(k));
+            for r in 0..m {
+                axpy(b[r], &a[r * k..(r + 1) * k], &mut out[..k]);
+            }
+        }
+        TensorOp::Outer { m, k } => {
+            let (m, k) = (u(m), u(k));
+            for r in 0..m {
+                axpy(a[r], &b[..k], &mut out[r * k..(r + 1) * k]);
+            }
+        }
+        TensorOp::Conv(c) => conv_taps(c, |o, ch, j, t, x_index| {
+            out[o * u(c.len_out) + t] = out[o * u(c.len_out) + t] + b[weight_index(c, o, ch, j)] * a[x_index];
+        }),
+        TensorOp::ConvBackData(c) => conv_taps(c, |o, ch, j, t, x_index| {
+            out[x_index] = out[x_index] + b[weight_index(c, o, ch, j)] * a[o * u(c.len_out) + t];
+        }),
+        TensorOp::ConvBackWeight(c) => conv_taps(c, |o, ch, j, t, x_index| {
+            let w = weight_index(c, o, ch, j);
+            out[w] = out[w] + a[o * u(c.len_out) + t] * b[x_index];
+        }),
+        TensorOp::PoolPick(p) => pool_argmax(p, a, |src, dst| out[dst] = b[src]),
+        TensorOp::PoolScatter(p) => pool_argmax(p, a, |src, dst| out[src] = out[src] + b[dst]),
+        TensorOp::PoolAvg(p) => {
+            let inv = T::one() / T::from(p.window).unwrap_or_else(T::one);
+            pool_windows(p, |src, dst| out[dst] = out[dst] + a[src] * inv);
+        }
+        TensorOp::PoolAvgBack(p) => {
+            let inv = T::one() / T::from(p.window).unwrap_or_else(T::one);
+            pool_windows(p, |src, dst| out[src] = out[src] + a[dst] * inv);
+        }
+        TensorOp::Spread { rows, cols } => {
+            for (r, row) in out[..u(rows * cols)].chunks_mut(u(cols).max(1)).enumerate() {
+                row.fill(a[r]);
+            }
+        }
+        TensorOp::SumRows { rows, cols } => {
+            for (r, o) in out[..u(rows)].iter_mut().enumerate() {
+                *o = a[r * u(cols)..(r + 1) * u(cols)].iter().fold(T::zero(), |s, x| s + *x);
+            }
+        }
+    }
+}
+
+fn dot<T: Float>(x: &[T], y: &[T]) -> T {
+    x.iter().zip(y).fold(T::zero(), |s, (a, b)| s + *a * *b)
+}
+
+fn axpy<T: Float>(alpha: T, x: &[T], y: &mut [T]) {
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi = *yi + alpha * *xi;
+    }
+}
+
+fn weight_index(c: Conv, o: usize, ch: usize, j: usize) -> usize {
+    (o * c.c_in as usize + ch) * c.kernel as usize + j
+}
+
+/// Calls `tap(o, c, j, t, x_index)` for every term of the convolution sum
+/// whose input sample lies inside the array (padding contributes zeros).
+fn conv_taps(c: Conv, mut tap: impl FnMut(usize, usize, usize, usize, usize)) {
+    let u = |x: u32| x as usize;
+    for o in 0..u(c.c_out) {
+        for ch in 0..u(c.c_in) {
+            for j in 0..u(c.kernel) {
+                for t in 0..u(c.len_out) {
+                    let pos = (t * u(c.stride) + j * u(c.dilation)) as isize - c.padding as isize;
+                    if pos >= 0 && (pos as usize) < u(c.len_in) {
+                        tap(o, ch, j, t, ch * u(c.len_in) + pos as usize);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Calls `f(src, dst)` for every input element `src` of every window `dst`.
+fn pool_windows(p: Pool, mut f: impl FnMut(usize, usize)) {
+    let u = |x: u32| x as usize;
+    for ch in 0..u(p.channels) {
+        for o in 0..u(p.len_out) {
+            for w in 0..u(p.window) {
+                f(ch * u(p.len_in) + o * u(p.stride) + w, ch * u(p.len_out) + o);
+            }
+        }
+    }
+}
+
+/// Calls `f(src, dst)` once per window `dst` with `src` the position of the
+/// first largest element of `x` in it (NaN never wins against a number).
+fn pool_argmax<T: Float>(p: Pool, x: &[T], mut f: impl FnMut(usize, usize)) {
+    let u = |x: u32| x as usize;
+    for ch in 0..u(p.channels) {
+        for o in 0..u(p.len_out) {
+            let start = ch * u(p.len_in) + o * u(p.stride);
+            let mut best = start;
+            for src in start + 1..start + u(p.window) {
+                if x[src] > x[best] || x[best].is_nan() {
+                    best = src;
+                }
+            }
+            f(best, ch * u(p.len_out) + o);
+        }
+    }
+}
+
+macro_rules! entry_point {
+    ($name:ident, $t:ty) => {
+        /// Entry point generated kernels call for one tensor op.
+        ///
+        /// # Safety
+        /// `op` must point to a valid [`TensorOp`]; `a`, `b` and `out` to at
+        /// least [`TensorOp::operand_lens`] / [`TensorOp::out_len`] elements
+        /// (`b` may equal `a` for unary ops); `out` must not overlap them.
+        pub unsafe extern "C" fn $name(op: *const TensorOp, a: *const $t, b: *const $t, out: *mut $t) {
+            // SAFETY: guaranteed by the caller (the code generator sizes every buffer from the op).
+            unsafe {
+                let op = *op;
+                let [la, lb] = op.operand_lens();
+                let a = std::slice::from_raw_parts(a, la);
+                let b = if op.arity() == 2 { std::slice::from_raw_parts(b, lb) } else { &[] };
+                let out = std::slice::from_raw_parts_mut(out, op.out_len());
+                apply(op, a, b, out);
+            }
+        }
+    };
+}
+
+entry_point!(gwml_tensor_f64, f64);
+entry_point!(gwml_tensor_f32, f32);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pseudo_random(n: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (0..n)
+            .map(|_| {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((s >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+            })
+            .collect()
+    }
+
+    fn run(op: TensorOp, a: &[f64], b: &[f64]) -> Vec<f64> {
+        let mut out = vec![f64::NAN; op.out_len()];
+        apply(op, a, b, &mut out);
+        out
+    }
+
+    fn inner(x: &[f64], y: &[f64]) -> f64 {
+        assert_eq!(x.len(), y.len());
+        x.iter().zip(y).map(|(a, b)| a * b).sum()
+    }
+
+    fn convs() -> Vec<Conv> {
+        let mut out = Vec::new();
+        for (c_in, c_out, len_in, kernel, stride, padding, dilation) in
+            [(1, 1, 5, 1, 1, 0, 1), (2, 3, 11, 3, 1, 1, 1), (3, 2, 17, 4, 2, 3, 2), (1, 4, 9, 9, 3, 4, 1), (2, 2, 8, 3, 4, 0, 3)]
+        {
+            let span = dilation * (kernel - 1) + 1;
+            let len_out = (len_in + 2 * padding - span) / stride + 1;
+            out.push(Conv { c_in, c_out, len_in, len_out, kernel, stride, padding, dilation });
+        }
+        out
+    }
+
+    #[test]
+    fn matvec_and_outer_match_the_definition() {
+        let (m, k) = (3usize, 4usize);
+        let w = pseudo_random(m * k, 1);
+        let x = pseudo_random(k, 2);
+        let y = run(TensorOp::MatVec { m: 3, k: 4 }, &w, &x);
+        for r in 0..m {
+            let want: f64 = (0..k).map(|c| w[r * k + c] * x[c]).sum();
+            assert!((y[r] - want).abs() < 1e-15);
+        }
+        let outer = run(TensorOp::Outer { m: 3, k: 4 }, &y, &x);
+        assert_eq!(outer[2 * k + 1], y[2] * x[1]);
+    }
+
+    #[test]
+    fn convolution_matches_the_definition() {
+        for c in convs() {
+            let x = pseudo_random((c.c_in * c.len_in) as usize, 3);
+            let w = pseudo_random((c.c_out * c.c_in * c.kernel) as usize, 4);
+            let y = run(TensorOp::Conv(c), &x, &w);
+            for o in 0..c.c_out as usize {
+                for t in 0..c.len_out as usize {
+                    let mut want = 0.0;
+                    for ch in 0..c.c_in as usize {
+                        for j in 0..c.kernel as usize {
+                            let pos = (t * c.stride as usize + j * c.dilation as usize) as i64 - c.padding as i64;
+                            if (0..c.len_in as i64).contains(&pos) {
+                                want += w[weight_index(c, o, ch, j)] * x[ch * c.len_in as usize + pos as usize];
+                            }
+                        }
+                    }
+                    assert!((y[o * c.len_out as usize + t] - want).abs() < 1e-14, "{c:?}");
+                }
+            }
+        }
+    }
+
+    /// ⟨A x, y⟩ = ⟨x, Aᵀ y⟩ for every op and its transpose(s).
+    #[test]
+    fn transposes_satisfy_the_adjoint_identity() {
+        let close = |l: f64, r: f64| assert!((l - r).abs() <= 1e-12 * (1.0 + l.abs()), "{l} vs {r}");
+        let (m, k) = (5u32, 7u32);
+        let w = pseudo_random((m * k) as usize, 5);
+        let x = pseudo_random(k as usize, 6);
+        let y = pseudo_random(m as usize, 7);
+        // In x: MatVec vs MatTVec; in W: MatVec vs Outer.
+        close(inner(&run(TensorOp::MatVec { m, k }, &w, &x), &y), inner(&x, &run(TensorOp::MatTVec { m, k }, &w, &y)));
+        close(inner(&run(TensorOp::MatVec { m, k }, &w, &x), &y), inner(&w, &run(TensorOp::Outer { m, k }, &y, &x)));
+        for c in convs() {
+            let x = pseudo_random((c.c_in * c.len_in) as usize, 8);
+            let w = pseudo_random((c.c_out * c.c_in * c.kernel) as usize, 9);
+            let d = pseudo_random((c.c_out * c.len_out) as usize, 10);
+            let lhs = inner(&run(TensorOp::Conv(c), &x, &w), &d);
+            close(lhs, inner(&x, &run(TensorOp::ConvBackData(c), &d, &w)));
+            close(lhs, inner(&w, &run(TensorOp::ConvBackWeight(c), &d, &x)));
+        }
+        for p in [
+            Pool { channels: 2, len_in: 9, len_out: 4, window: 2, stride: 2 },
+            Pool { channels: 3, len_in: 10, len_out: 3, window: 4, stride: 3 },
+        ] {
+            let x = pseudo_random((p.channels * p.len_in) as usize, 11);
+            let a = pseudo_random((p.channels * p.len_in) as usize, 12);
+            let d = pseudo_random((p.channels * p.len_out) as usize, 13);
+            close(inner(&run(TensorOp::PoolPick(p), &x, &a), &d), inner(&a, &run(TensorOp::PoolScatter(p), &x, &d)));
+            close(inner(&run(TensorOp::PoolAvg(p), &a, &[]), &d), inner(&a, &run(TensorOp::PoolAvgBack(p), &d, &[])));
+        }
+        let (rows, cols) = (3u32, 4u32);
+        let b = pseudo_random(rows as usize, 14);
+        let z = pseudo_random((rows * cols) as usize, 15);
+        close(inner(&run(TensorOp::Spread { rows, cols }, &b, &[]), &z), inner(&b, &run(TensorOp::SumRows { rows, cols }, &z, &[])));
+    }
+
+    #[test]
+    fn max_pooling_takes_the_first_of_tied_maxima() {
+        let p = Pool { channels: 1, len_in: 4, len_out: 2, window: 2, stride: 2 };
+        let x = [1.0, 1.0, -2.0, 3.0];
+        assert_eq!(run(TensorOp::PoolPick(p), &x, &x), vec![1.0, 3.0]);
+        assert_eq!(run(TensorOp::PoolScatter(p), &x, &[10.0, 20.0]), vec![10.0, 0.0, 0.0, 20.0]);
+    }
+
+    #[test]
+    fn f32_entry_point_matches_f64() {
+        let c = convs()[2];
+        let x = pseudo_random((c.c_in * c.len_in) as usize, 16);
+        let w = pseudo_random((c.c_out * c.c_in * c.kernel) as usize, 17);
+        let op = TensorOp::Conv(c);
+        let (x32, w32): (Vec<f32>, Vec<f32>) = (x.iter().map(|v| *v as f32).collect(), w.iter().map(|v| *v as f32).collect());
+        let mut o64 = vec![0.0f64; op.out_len()];
+        let mut o32 = vec![0.0f32; op.out_len()];
+        // SAFETY: every buffer has the op's lengths.
+        unsafe {
+            gwml_tensor_f64(&op, x.as_ptr(), w.as_ptr(), o64.as_mut_ptr());
+            gwml_tensor_f32(&op, x32.as_ptr(), w32.as_ptr(), o32.as_mut_ptr());
+        }
+        for (a, b) in o64.iter().zip(&o32) {
+            assert!((a - *b as f64).abs() < 1e-5, "{a} vs {b}");
+        }
+    }
+}

@@ -1,0 +1,236 @@
+//! Learned components: every layer, activation and loss of `std::nn`, its
+//! gradient with respect to weights (and physics params) from the JIT's
+//! fused value-and-gradient kernel against central finite differences of
+//! the JIT's forward kernel, in f64; the JIT against the reference
+//! interpreter; and the extremes (logits of ±1e4, pooling ties).
+
+use gwml_compiler::interp;
+use gwml_runtime::{Model, Outputs, Value};
+use num_complex::Complex64 as C64;
+
+/// Deterministic values in [-1, 1).
+fn pseudo_random(n: usize, seed: u64) -> Vec<f64> {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    (0..n)
+        .map(|_| {
+            s ^= s >> 12;
+            s ^= s << 25;
+            s ^= s >> 27;
+            ((s.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        })
+        .collect()
+}
+
+fn scalar(out: &Outputs, name: &str) -> f64 {
+    match out.value(name).unwrap() {
+        Value::Real(x) => *x,
+        v => panic!("{name} is {v:?}"),
+    }
+}
+
+/// Checks d`output`/d(every element of every trainable input) against
+/// central differences, with the given inputs bound (weights start from
+/// their initialisers). Returns the loss.
+fn check_weight_gradients(src: &str, data: &[(&str, Vec<f64>)], output: &str) -> f64 {
+    let model = Model::from_source("learned.gw", src).unwrap_or_else(|e| panic!("{e}\n{src}"));
+    let scene = model.scene(None).unwrap();
+    let mut run = scene.bind();
+    for (name, values) in data {
+        run.input_real(name, values).unwrap();
+    }
+    let out = run.value_and_grad().unwrap();
+    let loss = scalar(&out, output);
+    assert!(!out.input_grads.is_empty(), "the scene asks for weight gradients");
+    let weights: Vec<(String, Vec<f64>)> = scene
+        .ir()
+        .inputs
+        .iter()
+        .filter(|i| i.trainable)
+        .map(|i| (i.name.clone(), i.default.as_ref().unwrap().iter().map(|z| z.re).collect()))
+        .collect();
+    for (name, w0) in &weights {
+        let grad = out.input_grad(output, name).unwrap().to_vec();
+        assert_eq!(grad.len(), w0.len(), "{name}");
+        let norm = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
+        for k in 0..w0.len() {
+            let h = 1e-6 * w0[k].abs().max(1.0);
+            let mut at = |x: f64| {
+                let mut w = w0.clone();
+                w[k] = x;
+                run.input_real(name, &w).unwrap();
+                scalar(&run.forward().unwrap(), output)
+            };
+            let fd = (at(w0[k] + h) - at(w0[k] - h)) / (2.0 * h);
+            run.input_real(name, w0).unwrap();
+            let tol = 1e-6 * fd.abs().max(grad[k].abs()) + 1e-8 * norm.max(1e-3);
+            assert!((fd - grad[k]).abs() <= tol, "d{output}/d{name}[{k}]: adjoint {} vs finite difference {fd}\n{src}", grad[k]);
+        }
+    }
+    loss
+}
+
+/// The JIT's outputs and weight gradients equal the interpreter's.
+fn check_against_interpreter(src: &str, data: &[(&str, Vec<f64>)]) {
+    let model = Model::from_source("learned.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    let mut run = scene.bind();
+    for (name, values) in data {
+        run.input_real(name, values).unwrap();
+    }
+    let out = run.value_and_grad().unwrap();
+    let func = scene.ir();
+    let inputs: Vec<interp::Tensor> = func
+        .inputs
+        .iter()
+        .map(|i| match data.iter().find(|d| d.0 == i.name) {
+            Some((_, v)) => v.iter().map(|x| C64::new(*x, 0.0)).collect(),
+            None => i.default.clone().unwrap(),
+        })
+        .collect();
+    let r = interp::interpret(func, &[], &inputs);
+    for g in &func.input_grads {
+        let want = &r.values[g.value.unwrap().index()];
+        let have = out.input_grad(&func.outputs[g.output].name, &func.inputs[g.input].name).unwrap();
+        for (a, b) in have.iter().zip(want) {
+            assert!((a - b.re).abs() <= 1e-13 * (1.0 + b.re.abs()), "{a} vs {}", b.re);
+        }
+    }
+}
+
+/// A scene over `n` inputs `x` running learned component `net`, with loss `out`.
+fn wrap(body: &str, n: usize) -> String {
+    format!(
+        "use std::nn::{{relu, leaky_relu, sigmoid, softplus, gelu, log_softmax, softmax, cross_entropy, mse, layer_norm}}\n\
+         learned net(x) {{\n{body}\n}}\n\
+         scene s {{\n  grid g = index({n})\n  input x: real[g] = 0.0\n  output out = net(x)\n  grad out wrt net\n}}\n"
+    )
+}
+
+#[test]
+fn activations_and_losses_have_correct_weight_gradients() {
+    let n = 7;
+    let x = pseudo_random(n, 1);
+    for formula in [
+        "sum(relu(w) * x)",
+        "sum(leaky_relu(w, 0.1) * x)",
+        "sum(sigmoid(3.0 * w) * x)",
+        "sum(softplus(4.0 * w) * x)",
+        "sum(gelu(2.0 * w) * x)",
+        "sum(tanh(w) * x) + sum(sin(3.0 * w) * x)",
+        "sum(log_softmax(3.0 * w) * x)",
+        "sum(softmax(w) * x)",
+        "cross_entropy(w, softmax(x))",
+        "mse(w, x)",
+        "sum(layer_norm(w) * x)",
+    ] {
+        let src = wrap(&format!("    weight w: [{n}] = normal(std: 1.0, seed: 5)\n    {formula}"), n);
+        check_weight_gradients(&src, &[("x", x.clone())], "out");
+    }
+}
+
+#[test]
+fn dense_layers_have_correct_gradients() {
+    let src = wrap(
+        "    weight w1: [5, 6] = glorot(seed: 1)\n    weight b1: [5] = normal(std: 0.3, seed: 2)\n    weight w2: [3, 5] = he(seed: 3)\n    \
+         let h = tanh(dense(x, w1, b1))\n    sum(dense(h, w2) * dense(h, w2))",
+        6,
+    );
+    let data = [("x", pseudo_random(6, 4))];
+    check_weight_gradients(&src, &data, "out");
+    check_against_interpreter(&src, &data);
+}
+
+#[test]
+fn convolutions_with_stride_padding_and_dilation_have_correct_gradients() {
+    for (stride, padding, dilation, kernel) in [(1, 0, 1, 3), (2, 1, 1, 4), (3, 2, 2, 3), (1, 3, 3, 2)] {
+        let src = format!(
+            "learned net(x) {{\n    weight k1: [3, 1, {kernel}] = he(seed: 1)\n    weight b1: [3] = normal(std: 0.2, seed: 2)\n    \
+             weight k2: [2, 3, 2] = glorot(seed: 3)\n    \
+             let h = tanh(conv1d(x, k1, b1, stride: {stride}, padding: {padding}, dilation: {dilation}))\n    \
+             let y = conv1d(h, k2, dilation: 2)\n    sum(y * y)\n}}\n\
+             scene s {{\n  grid t = times(rate: 19 Hz, duration: 1 s)\n  input x: real[t] = 0.0\n  output out = net(x)\n  grad out wrt net\n}}\n"
+        );
+        let data = [("x", pseudo_random(19, 6))];
+        check_weight_gradients(&src, &data, "out");
+        check_against_interpreter(&src, &data);
+    }
+}
+
+#[test]
+fn pooling_layers_have_correct_gradients() {
+    for pool in ["max_pool(h, 2)", "max_pool(h, 3, stride: 2)", "avg_pool(h, 3)", "avg_pool(h, window: 2, stride: 1)"] {
+        let src = format!(
+            "learned net(x) {{\n    weight k1: [2, 1, 3] = he(seed: 7)\n    weight w: [3, 2] = glorot(seed: 8)\n    \
+             let h = conv1d(x, k1)\n    let p = {pool}\n    sum(dense(global_avg_pool(p), w) * x3)\n}}\n\
+             scene s {{\n  grid t = times(rate: 16 Hz, duration: 1 s)\n  grid c = index(3)\n  input x: real[t] = 0.0\n  input x3: real[c] = 0.0\n  \
+             output out = net(x)\n  grad out wrt net\n}}\n"
+        );
+        let src = src.replace("learned net(x)", "learned net(x, x3)").replace("net(x)\n  grad", "net(x, x3)\n  grad");
+        let data = [("x", pseudo_random(16, 9)), ("x3", pseudo_random(3, 10))];
+        check_weight_gradients(&src, &data, "out");
+        check_against_interpreter(&src, &data);
+    }
+}
+
+#[test]
+fn max_pooling_sends_the_gradient_of_a_tie_to_the_first_maximum() {
+    // x = [1, 1, 0, 2]: windows of 2 tie in the first; d/dw of sum(max_pool(w * x))
+    // with w = ones is x at the chosen positions: [1, 0, 0, 2].
+    let src = "learned net(x) {\n    weight w: [4] = ones\n    sum(max_pool(w * x, 2))\n}\n\
+               scene s {\n  grid g = index(4)\n  input x: real[g] = 0.0\n  output out = net(x)\n  grad out wrt net\n}\n";
+    let model = Model::from_source("ties.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    let mut run = scene.bind();
+    run.input_real("x", &[1.0, 1.0, 0.0, 2.0]).unwrap();
+    let out = run.value_and_grad().unwrap();
+    assert_eq!(scalar(&out, "out"), 3.0);
+    assert_eq!(out.input_grad("out", "net.w").unwrap(), &[1.0, 0.0, 0.0, 2.0]);
+}
+
+#[test]
+fn cross_entropy_with_logits_of_1e4_is_finite_and_exact() {
+    // Logits ±1e4: the softmax saturates; the loss is exactly 0 for the
+    // right class and 2e4 for the wrong one, and the gradient is
+    // softmax - target (0 or ±1), with no NaN or infinity.
+    let src = "use std::nn::{cross_entropy}\nlearned net(x) {\n    weight z: [2] = zeros\n    cross_entropy(z, x)\n}\n\
+               scene s {\n  grid c = index(2)\n  input x: real[c] = 0.0\n  output out = net(x)\n  grad out wrt net\n}\n";
+    let model = Model::from_source("logits.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    let mut run = scene.bind();
+    for (z, target, loss, grad) in [
+        ([1e4, -1e4], [1.0, 0.0], 0.0, [0.0, 0.0]),
+        ([1e4, -1e4], [0.0, 1.0], 2e4, [1.0, -1.0]),
+        ([-1e4, -1e4], [0.0, 1.0], std::f64::consts::LN_2, [0.5, -0.5]),
+    ] {
+        run.input_real("net.z", &z).unwrap().input_real("x", &target).unwrap();
+        let out = run.value_and_grad().unwrap();
+        assert_eq!(scalar(&out, "out"), loss);
+        assert_eq!(out.input_grad("out", "net.z").unwrap(), &grad);
+    }
+}
+
+#[test]
+fn physics_params_and_weights_get_gradients_together() {
+    // A sine-Gaussian's central frequency (a param) feeds a dense layer;
+    // one value-and-gradient call gives d loss / d f0 and d loss / d weights.
+    let src = "use std::burst::{sine_gaussian}\n\
+               learned head(h) {\n    weight w: [2, 32] = glorot(seed: 4)\n    dense(h, w)\n}\n\
+               scene s {\n  grid t = times(rate: 64 Hz, duration: 0.5 s)\n  grid c = index(2)\n  \
+               param f0: Hz = 9.0 in 2.0..30.0\n  input y: real[c] = 0.0\n  \
+               let h = sine_gaussian(t, f0: f0, q: 3.0, t0: 0.25 s, amp: 1.0, phi: 0.0)\n  \
+               output loss = sum((head(h) - y) * (head(h) - y))\n  grad loss wrt [f0, head]\n}\n";
+    let model = Model::from_source("joint.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    let mut run = scene.bind();
+    run.input_real("y", &[0.3, -0.2]).unwrap();
+    let out = run.value_and_grad().unwrap();
+    let g = out.grad("loss", "f0").unwrap();
+    let h = 1e-5;
+    let mut at = |f0: f64| {
+        run.param("f0", f0).unwrap();
+        scalar(&run.forward().unwrap(), "loss")
+    };
+    let fd = (at(9.0 + h) - at(9.0 - h)) / (2.0 * h);
+    assert!((g - fd).abs() <= 1e-6 * fd.abs().max(1e-6), "d loss / d f0: {g} vs {fd}");
+    assert_eq!(out.input_grad("loss", "head.w").unwrap().len(), 64);
+}
