@@ -163,7 +163,11 @@ impl Completer for ReplHelper {
                     .map(|rest| rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>()),
             );
         }
-        cands.extend(["let", "param", "grid", "input", "module", "use", "wrt", "frequencies", "times"].iter().map(|s| s.to_string()));
+        cands.extend(
+            ["let", "param", "grid", "input", "module", "learned", "weight", "use", "wrt", "frequencies", "times", "index"]
+                .iter()
+                .map(|s| s.to_string()),
+        );
         if start == 0 {
             cands.extend(COMMANDS.iter().map(|c| c.0.to_string()));
         }

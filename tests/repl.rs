@@ -44,6 +44,26 @@ sum(f / 1 Hz)
 }
 
 #[test]
+fn transcript_learned_component() {
+    let (ok, out) = piped(
+        "use std::nn::{relu}
+grid c = index(3)
+learned net(v) {
+    weight w: [2, 3] = ones
+    weight b: [2] = zeros
+    relu(dense(v, w, b))
+}
+let v = c - 1.0
+sum(net(v))
+net(v + 1.0)
+:type net(v)
+",
+    );
+    assert!(ok, "{out}");
+    insta::assert_snapshot!(out);
+}
+
+#[test]
 fn errors_keep_the_session_and_set_the_exit_status() {
     let (ok, out) = piped("let a = 1.5\nfoo + a\nlet b = a +\na * 2.0\n:bogus\n");
     assert!(!ok, "a failed line makes the exit status non-zero");

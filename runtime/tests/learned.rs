@@ -234,3 +234,30 @@ fn physics_params_and_weights_get_gradients_together() {
     assert!((g - fd).abs() <= 1e-6 * fd.abs().max(1e-6), "d loss / d f0: {g} vs {fd}");
     assert_eq!(out.input_grad("loss", "head.w").unwrap().len(), 64);
 }
+
+#[test]
+fn f32_kernels_agree_with_f64_on_a_small_cnn() {
+    let src = "use std::nn::{relu, cross_entropy}\n\
+               learned net(x) {\n    weight k1: [4, 1, 5] = he(seed: 1)\n    weight b1: [4] = normal(std: 0.1, seed: 2)\n    \
+               weight w2: [3, 4] = glorot(seed: 3)\n    \
+               let h = relu(conv1d(x, k1, b1, stride: 2, padding: 2))\n    dense(global_avg_pool(max_pool(h, 2)), w2)\n}\n\
+               scene s {\n  grid t = times(rate: 32 Hz, duration: 1 s)\n  grid c = index(3)\n  input x: real[t] = 0.0\n  \
+               input label: real[c] = 0.0\n  output logits = net(x)\n  output loss = cross_entropy(logits, label)\n  grad loss wrt net\n}\n";
+    let model = Model::from_source("f32.gw", src).unwrap();
+    let x = pseudo_random(32, 11);
+    let mut results = Vec::new();
+    for precision in [gwml_compiler::ir::Precision::F64, gwml_compiler::ir::Precision::F32] {
+        let scene = model.scene_with(None, gwml_compiler::Options { precision: Some(precision), math: None }).unwrap();
+        let mut run = scene.bind();
+        run.input_real("x", &x).unwrap().input_real("label", &[0.0, 1.0, 0.0]).unwrap();
+        let out = run.value_and_grad().unwrap();
+        results.push((scalar(&out, "loss"), out.input_grad("loss", "net.k1").unwrap().to_vec()));
+    }
+    let (l64, g64) = &results[0];
+    let (l32, g32) = &results[1];
+    assert!((l64 - l32).abs() <= 1e-5 * l64.abs(), "{l64} vs {l32}");
+    let norm = g64.iter().map(|g| g * g).sum::<f64>().sqrt();
+    for (a, b) in g64.iter().zip(g32) {
+        assert!((a - b).abs() <= 1e-5 * norm, "{a} vs {b}");
+    }
+}
