@@ -12,9 +12,12 @@
 //! ```
 
 pub mod batch;
+pub mod checkpoint;
+pub mod dataset;
 pub mod fit;
 pub mod noise;
 pub mod npy;
+pub mod optim;
 pub mod spectrum;
 
 use gwml_compiler::codegen::{self, BufferKind, Kernel};
