@@ -19,6 +19,8 @@ pub mod noise;
 pub mod npy;
 pub mod optim;
 pub mod spectrum;
+pub mod synth;
+pub mod train;
 
 use gwml_compiler::codegen::{self, BufferKind, Kernel};
 use gwml_compiler::diagnostics::did_you_mean;
