@@ -10,14 +10,14 @@ use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Instant;
 
-fn render(e: Error) -> String {
+pub(crate) fn render(e: Error) -> String {
     match e {
         Error::Compile(c) => c.render(std::io::stderr().is_terminal()),
         other => format!("error: {other}"),
     }
 }
 
-fn options(k: KnobArgs) -> Options {
+pub(crate) fn options(k: KnobArgs) -> Options {
     Options {
         precision: k.precision.map(|p| match p {
             PrecisionArg::F64 => Precision::F64,
@@ -115,7 +115,7 @@ fn plural(n: usize) -> &'static str {
     }
 }
 
-fn split_pair<'a>(s: &'a str, flag: &str) -> Result<(&'a str, &'a str), String> {
+pub(crate) fn split_pair<'a>(s: &'a str, flag: &str) -> Result<(&'a str, &'a str), String> {
     s.split_once('=')
         .map(|(a, b)| (a.trim(), b.trim()))
         .filter(|(a, b)| !a.is_empty() && !b.is_empty())

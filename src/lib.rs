@@ -18,6 +18,7 @@ pub mod timing;
 pub mod tradeoff;
 
 pub use gwml_compiler as compiler;
+pub use gwml_runtime as runtime;
 pub use gwml_runtime::{batch, npy, spectrum, Error, Model, Outputs, Run, Scene, Value};
 
 /// Reads and checks a `.gw` file.

@@ -1,6 +1,7 @@
 //! The `gwml` command-line tool.
 
 mod commands;
+mod learn;
 mod plot;
 mod repl;
 
@@ -28,6 +29,14 @@ enum Command {
     /// Minimise a scene's scalar loss over the params of its `grad` statement
     /// (within their bounds) and report Fisher-matrix uncertainties.
     Fit(FitArgs),
+    /// Train the learned components of a scene on a NumPy dataset (weights
+    /// and the params its `grad` names), with validation, early stopping and
+    /// safetensors checkpoints.
+    Train(TrainArgs),
+    /// Apply trained weights to each row of NumPy inputs and write outputs.
+    Predict(PredictArgs),
+    /// Write a synthetic labelled dataset (.npz).
+    Data(DataArgs),
     /// An interactive session: define, evaluate, differentiate, inspect, time.
     /// Reads piped standard input line by line (exit status 1 if any line failed).
     Repl,
@@ -178,6 +187,154 @@ pub struct FitArgs {
     pub knobs: KnobArgs,
 }
 
+/// Optimisers of `gwml train`.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum TrainOptimizerArg {
+    /// Adam (Kingma & Ba 2015), betas 0.9 / 0.999.
+    Adam,
+    /// Adam with decoupled weight decay (Loshchilov & Hutter 2019).
+    Adamw,
+    /// Stochastic gradient descent with momentum.
+    Sgd,
+}
+
+/// Learning-rate schedules of `gwml train`.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ScheduleArg {
+    /// The same rate throughout.
+    Constant,
+    /// Multiplied by --gamma every --step-epochs epochs.
+    Step,
+    /// Cosine decay to zero over all epochs.
+    Cosine,
+}
+
+#[derive(clap::Args)]
+pub struct TrainArgs {
+    /// The .gw file.
+    pub file: PathBuf,
+    /// Scene to train (optional when the file has one scene).
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Training data: .npz (or .npy) whose arrays are named like the scene's
+    /// inputs, one row per example; class labels may be a 1-D integer array
+    /// for a one-hot input.
+    #[arg(long, value_name = "PATH.npz")]
+    pub data: PathBuf,
+    /// Validation data, in the same form.
+    #[arg(long, value_name = "PATH.npz")]
+    pub val: Option<PathBuf>,
+    /// Passes over the training data.
+    #[arg(long, default_value_t = 10)]
+    pub epochs: usize,
+    /// Examples per gradient step.
+    #[arg(long, default_value_t = 32)]
+    pub batch: usize,
+    /// Learning rate.
+    #[arg(long, default_value_t = 1e-3)]
+    pub lr: f64,
+    /// Optimiser.
+    #[arg(long, value_enum, default_value = "adam")]
+    pub optimizer: TrainOptimizerArg,
+    /// Weight decay of adamw.
+    #[arg(long, default_value_t = 0.01)]
+    pub weight_decay: f64,
+    /// Momentum of sgd.
+    #[arg(long, default_value_t = 0.9)]
+    pub momentum: f64,
+    /// Learning-rate schedule.
+    #[arg(long, value_enum, default_value = "constant")]
+    pub schedule: ScheduleArg,
+    /// Epochs between decays of the step schedule.
+    #[arg(long, default_value_t = 5)]
+    pub step_epochs: usize,
+    /// Factor of each decay of the step schedule.
+    #[arg(long, default_value_t = 0.5)]
+    pub gamma: f64,
+    /// Clip the gradient to this global L2 norm.
+    #[arg(long, value_name = "NORM")]
+    pub clip: Option<f64>,
+    /// Seed of the shuffles (training is deterministic for a seed and thread count).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Worker threads [default: all cores].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Stop after this many epochs without a lower validation loss.
+    #[arg(long, value_name = "EPOCHS")]
+    pub patience: Option<usize>,
+    /// Directory for checkpoints: last.safetensors each epoch, best.safetensors at the lowest validation loss.
+    #[arg(long, value_name = "DIR")]
+    pub checkpoint: Option<PathBuf>,
+    /// Continue from DIR/last.safetensors (bit for bit, with the same seed and threads).
+    #[arg(long)]
+    pub resume: bool,
+    /// The output to minimise.
+    #[arg(long, default_value = "loss")]
+    pub loss: String,
+    /// The output whose largest element is the predicted class (for accuracy).
+    #[arg(long, default_value = "logits")]
+    pub logits: String,
+    /// The input holding the labels (for accuracy).
+    #[arg(long, default_value = "label")]
+    pub label: String,
+    /// Plot training and validation loss per epoch to a PNG.
+    #[arg(long, value_name = "PATH.png")]
+    pub plot: Option<PathBuf>,
+    /// No progress bar or per-epoch lines (they go to standard error).
+    #[arg(long, short)]
+    pub quiet: bool,
+    #[command(flatten)]
+    pub knobs: KnobArgs,
+}
+
+#[derive(clap::Args)]
+pub struct PredictArgs {
+    /// The .gw file.
+    pub file: PathBuf,
+    /// Scene to run (optional when the file has one scene).
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// A checkpoint written by `gwml train`.
+    #[arg(long, value_name = "CKPT.safetensors")]
+    pub weights: PathBuf,
+    /// An input as a .npy array with one row per example: `--input x=X.npy`.
+    #[arg(long = "input", value_name = "NAME=PATH.npy")]
+    pub input: Vec<String>,
+    /// Write an output, one row per example: `--output logits=Y.npy`.
+    #[arg(long = "output", value_name = "NAME=PATH.npy")]
+    pub output: Vec<String>,
+    #[command(flatten)]
+    pub knobs: KnobArgs,
+}
+
+/// Kinds of synthetic data.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum DataKind {
+    /// Sine-Gaussian bursts in white noise (label 1) or noise alone (label 0):
+    /// `x` of 256 samples at 256 Hz, f0 20-100 Hz, Q 3-12.
+    Bursts,
+}
+
+#[derive(clap::Args)]
+pub struct DataArgs {
+    /// What to draw.
+    #[arg(value_enum)]
+    pub kind: DataKind,
+    /// Number of examples.
+    #[arg(long, default_value_t = 1000)]
+    pub n: usize,
+    /// Seed (use different seeds for training, validation and test sets).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Range of the optimal signal-to-noise ratio of the bursts.
+    #[arg(long, default_value = "6..15")]
+    pub snr: String,
+    /// The .npz file to write.
+    #[arg(long, value_name = "PATH.npz")]
+    pub out: PathBuf,
+}
+
 #[derive(clap::Args)]
 pub struct TradeoffArgs {
     /// The .gw file.
@@ -217,6 +374,9 @@ fn main() -> ExitCode {
         Command::Run(a) => commands::run(a),
         Command::Fit(a) => commands::fit(a),
         Command::Tradeoff(a) => commands::tradeoff(a),
+        Command::Train(a) => learn::train(a),
+        Command::Predict(a) => learn::predict(a),
+        Command::Data(a) => learn::data(a),
         Command::Repl => {
             let failures = repl::run();
             return if failures == 0 { ExitCode::SUCCESS } else { ExitCode::FAILURE };

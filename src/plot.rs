@@ -17,13 +17,23 @@ fn register_font() {
 
 /// Draws `ys` against `xs` as a line plot into a PNG at `path`.
 pub fn line_plot(path: &Path, title: &str, x_label: &str, y_label: &str, xs: &[f64], ys: &[f64]) -> Result<(), String> {
+    lines_plot(path, title, x_label, y_label, &[("", xs, ys)])
+}
+
+/// Draws several `(legend, xs, ys)` series as lines into a PNG at `path`
+/// (a legend is drawn when any name is non-empty).
+pub fn lines_plot(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, &[f64], &[f64])]) -> Result<(), String> {
     register_font();
-    let finite: Vec<(f64, f64)> = xs.iter().zip(ys).filter(|(x, y)| x.is_finite() && y.is_finite()).map(|(x, y)| (*x, *y)).collect();
-    if finite.is_empty() {
+    let finite: Vec<Vec<(f64, f64)>> = series
+        .iter()
+        .map(|(_, xs, ys)| xs.iter().zip(ys.iter()).filter(|(x, y)| x.is_finite() && y.is_finite()).map(|(x, y)| (*x, *y)).collect())
+        .collect();
+    let all: Vec<(f64, f64)> = finite.iter().flatten().copied().collect();
+    if all.is_empty() {
         return Err("nothing to plot: no finite values".into());
     }
-    let (x0, x1) = finite.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
-    let (y0, y1) = finite.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (_, y)| (a.min(*y), b.max(*y)));
+    let (x0, x1) = all.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
+    let (y0, y1) = all.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (_, y)| (a.min(*y), b.max(*y)));
     let pad = |a: f64, b: f64| if b > a { (b - a) * 0.05 } else { a.abs().max(1.0) * 0.05 };
     let (py, px) = (pad(y0, y1), if x1 > x0 { 0.0 } else { 0.5 });
     let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
@@ -37,7 +47,23 @@ pub fn line_plot(path: &Path, title: &str, x_label: &str, y_label: &str, xs: &[f
         .build_cartesian_2d((x0 - px)..(x1 + px), (y0 - py)..(y1 + py))
         .map_err(|e| err(&e))?;
     chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 14)).draw().map_err(|e| err(&e))?;
-    chart.draw_series(LineSeries::new(finite, &BLUE)).map_err(|e| err(&e))?;
+    let colours = [BLUE, RED, GREEN, MAGENTA, BLACK];
+    for (k, ((name, _, _), points)) in series.iter().zip(finite).enumerate() {
+        let colour = colours[k % colours.len()];
+        let drawn = chart.draw_series(LineSeries::new(points, colour)).map_err(|e| err(&e))?;
+        if !name.is_empty() {
+            drawn.label(*name).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+        }
+    }
+    if series.iter().any(|(n, _, _)| !n.is_empty()) {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(|e| err(&e))?;
+    }
     root.present().map_err(|e| err(&e))?;
     Ok(())
 }

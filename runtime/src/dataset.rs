@@ -248,6 +248,21 @@ pub fn write_npz(path: &Path, ds: &Dataset) -> Result<(), Error> {
     })
 }
 
+/// Writes one array as an f64 `.npy` file of its shape, atomically (temp + rename).
+pub fn write_npy(path: &Path, a: &Array) -> Result<(), Error> {
+    if element_count(&a.shape) != Some(a.data.len()) {
+        return Err(Error::Bind(format!("cannot write {}: shape {:?} but {} values", path.display(), a.shape, a.data.len())));
+    }
+    write_atomically(path, |file| {
+        let shape: Vec<u64> = a.shape.iter().map(|&d| d as u64).collect();
+        let mut buffered = BufWriter::new(file);
+        let mut w = npyz::WriteOptions::new().default_dtype().shape(&shape).writer(&mut buffered).begin_nd()?;
+        w.extend(a.data.iter().copied())?;
+        w.finish()?;
+        buffered.into_inner().map_err(|e| e.into_error())
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,6 +285,15 @@ mod tests {
                 ("snr".to_string(), Array::new(vec![4, 1, 1], vec![8.0, 12.5, f64::MAX, 1e-300]).unwrap()),
             ]),
         }
+    }
+
+    #[test]
+    fn a_2d_npy_round_trips() {
+        let dir = scratch("npy2d");
+        let path = dir.join("y.npy");
+        let a = Array::new(vec![2, 3], vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]).unwrap();
+        write_npy(&path, &a).unwrap();
+        assert_eq!(Dataset::read(&path).unwrap().arrays["y"], a);
     }
 
     #[test]

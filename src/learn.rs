@@ -1,0 +1,215 @@
+//! `gwml train`, `gwml predict` and `gwml data`: training learned
+//! components on NumPy datasets, applying trained weights, and writing
+//! synthetic datasets.
+
+use crate::commands::{options, render, split_pair};
+use crate::{DataArgs, DataKind, PredictArgs, ScheduleArg, TrainArgs, TrainOptimizerArg};
+use gwml::runtime::checkpoint;
+use gwml::runtime::dataset::{self, Array, Dataset};
+use gwml::runtime::optim::{Method, OptimConfig, Schedule};
+use gwml::runtime::synth::{bursts, BurstOptions};
+use gwml::runtime::train::{EpochReport, TrainOptions, Trainer};
+use gwml::{Model, Value};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+
+fn read_dataset(path: &Path) -> Result<Dataset, String> {
+    Dataset::read(path).map_err(render)
+}
+
+/// `gwml train`.
+pub fn train(a: TrainArgs) -> Result<(), String> {
+    let model = Model::from_file(&a.file).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
+    let train = read_dataset(&a.data)?;
+    let val = a.val.as_deref().map(read_dataset).transpose()?;
+    let method = match a.optimizer {
+        TrainOptimizerArg::Adam => Method::adam(),
+        TrainOptimizerArg::Adamw => Method::adamw(a.weight_decay),
+        TrainOptimizerArg::Sgd => Method::sgd(a.momentum),
+    };
+    let batches_per_epoch = train.examples().map_err(render)?.div_ceil(a.batch.max(1)) as u64;
+    let schedule = match a.schedule {
+        ScheduleArg::Constant => Schedule::Constant,
+        ScheduleArg::Step => Schedule::Step { every: a.step_epochs.max(1) as u64 * batches_per_epoch, gamma: a.gamma },
+        ScheduleArg::Cosine => Schedule::Cosine { total: a.epochs as u64 * batches_per_epoch, min_lr: 0.0 },
+    };
+    if a.resume && a.checkpoint.is_none() {
+        return Err("error: --resume needs --checkpoint DIR (it continues from DIR/last.safetensors)".into());
+    }
+    let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let opts = TrainOptions {
+        loss: a.loss.clone(),
+        logits: a.logits.clone(),
+        label: a.label.clone(),
+        epochs: a.epochs,
+        batch: a.batch,
+        optim: OptimConfig { method, lr: a.lr, schedule, clip_norm: a.clip },
+        seed: a.seed,
+        threads,
+        patience: a.patience,
+        checkpoint_dir: a.checkpoint.clone(),
+    };
+    let mut trainer = Trainer::new(&scene, opts).map_err(render)?;
+    if a.resume {
+        let last = a.checkpoint.as_ref().expect("checked above").join("last.safetensors");
+        trainer.resume(&last).map_err(render)?;
+        eprintln!("resumed from {} after epoch {}", last.display(), trainer.epoch());
+    }
+    let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(batches_per_epoch) };
+    bar.set_style(
+        ProgressStyle::with_template("epoch {msg} [{bar:30}] {pos}/{len} batches, {per_sec}, eta {eta}")
+            .map_err(|e| format!("error: {e}"))?
+            .progress_chars("=> "),
+    );
+    let t0 = Instant::now();
+    let epochs = a.epochs;
+    let first_epoch = trainer.epoch() + 1;
+    let epochs_done = std::cell::Cell::new(0usize);
+    let reports = trainer
+        .fit(
+            &train,
+            val.as_ref(),
+            |done, total| {
+                if done == 1 {
+                    bar.set_length(total as u64);
+                    bar.set_message(format!("{}/{epochs}", first_epoch + epochs_done.get()));
+                }
+                bar.set_position(done as u64);
+            },
+            |r| {
+                bar.finish_and_clear();
+                bar.reset();
+                if !a.quiet {
+                    eprintln!("{}  ({:.1} s)", epoch_line(r, epochs), t0.elapsed().as_secs_f64());
+                }
+                epochs_done.set(epochs_done.get() + 1);
+            },
+        )
+        .map_err(render)?;
+    if reports.is_empty() {
+        println!("nothing to do: {} of {} epochs were already done", trainer.epoch(), a.epochs);
+        return Ok(());
+    }
+    let last = reports.last().expect("not empty");
+    println!("{}", epoch_line(last, a.epochs));
+    for (name, values) in trainer.weights() {
+        let norm = values.iter().map(|v| v * v).sum::<f64>().sqrt();
+        println!("  {name}: {} values, L2 norm {norm:.4e}", values.len());
+    }
+    for slot in scene.ir().params.iter().filter_map(|p| trainer.param(&p.name).map(|v| (p, v))) {
+        println!("  {} = {:.6e} {}", slot.0.name, slot.1, slot.0.unit);
+    }
+    if let Some(dir) = &a.checkpoint {
+        println!(
+            "checkpoints: {} (last) and {} (lowest validation loss)",
+            dir.join("last.safetensors").display(),
+            dir.join("best.safetensors").display()
+        );
+    }
+    if let Some(path) = &a.plot {
+        let xs: Vec<f64> = reports.iter().map(|r| r.epoch as f64).collect();
+        let train_loss: Vec<f64> = reports.iter().map(|r| r.train_loss).collect();
+        let val_loss: Vec<f64> = reports.iter().map(|r| r.val.map_or(f64::NAN, |m| m.loss)).collect();
+        crate::plot::lines_plot(path, "training", "epoch", &a.loss, &[("train", &xs, &train_loss), ("validation", &xs, &val_loss)])?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+fn epoch_line(r: &EpochReport, epochs: usize) -> String {
+    let pct = |x: Option<f64>| x.map(|a| format!("  acc {:.1} %", 100.0 * a)).unwrap_or_default();
+    let val = r.val.map(|m| format!("  val loss {:.4e}{}", m.loss, pct(m.accuracy))).unwrap_or_default();
+    let stop = if r.stop { "  (early stop)" } else { "" };
+    format!("epoch {}/{epochs}  train loss {:.4e}{}{val}  lr {:.2e}{stop}", r.epoch, r.train_loss, pct(r.train_accuracy), r.lr)
+}
+
+/// `gwml predict`.
+pub fn predict(a: PredictArgs) -> Result<(), String> {
+    let model = Model::from_file(&a.file).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
+    let ck = checkpoint::load(&a.weights).map_err(render)?;
+    let mut run = scene.bind();
+    let func = scene.ir();
+    let mut bound = 0;
+    for t in &ck.tensors {
+        if func.inputs.iter().any(|i| i.trainable && i.name == t.name) {
+            run.input_real(&t.name, &t.data).map_err(render)?;
+            bound += 1;
+        } else if t.shape.is_empty() && func.params.iter().any(|p| p.name == t.name) {
+            run.param(&t.name, t.data[0]).map_err(render)?;
+        }
+    }
+    let weights = func.inputs.iter().filter(|i| i.trainable).count();
+    if bound < weights {
+        return Err(format!("error: {} holds {bound} of the scene's {weights} weight tensors", a.weights.display()));
+    }
+    let mut inputs: Vec<(String, Array)> = Vec::new();
+    for s in &a.input {
+        let (name, path) = split_pair(s, "--input")?;
+        let ds = read_dataset(Path::new(path))?;
+        let array = ds.arrays.into_values().next().ok_or_else(|| format!("error: {path} holds no array"))?;
+        inputs.push((name.to_string(), array));
+    }
+    let n = inputs.first().map_or(1, |(_, a)| a.rows());
+    if let Some((name, arr)) = inputs.iter().find(|(_, a)| a.rows() != n) {
+        return Err(format!("error: --input {name} has {} rows, but the first input has {n}", arr.rows()));
+    }
+    let mut outputs: Vec<(String, &Path, Vec<f64>, usize)> = Vec::new();
+    for s in &a.output {
+        let (name, path) = split_pair(s, "--output")?;
+        outputs.push((name.to_string(), Path::new(path), Vec::new(), 0));
+    }
+    if outputs.is_empty() {
+        return Err("error: give at least one --output NAME=PATH.npy".into());
+    }
+    for i in 0..n {
+        for (name, arr) in &inputs {
+            run.input_real(name, arr.row(i)).map_err(render)?;
+        }
+        let out = run.forward().map_err(|e| format!("row {i}: {}", render(e)))?;
+        for (name, _, data, width) in &mut outputs {
+            let values = match out.value(name).map_err(render)? {
+                Value::Real(x) => vec![*x],
+                Value::RealArray(v) => v.clone(),
+                _ => return Err(format!("error: output `{name}` is complex; predict writes real outputs")),
+            };
+            *width = values.len();
+            data.extend(values);
+        }
+    }
+    for (name, path, data, width) in outputs {
+        let mut arrays = BTreeMap::new();
+        arrays.insert(name.clone(), Array::new(vec![n, width], data).map_err(render)?);
+        dataset::write_npy(path, &arrays[&name]).map_err(render)?;
+        println!("wrote {} ({n} × {width})", path.display());
+    }
+    Ok(())
+}
+
+/// `gwml data`.
+pub fn data(a: DataArgs) -> Result<(), String> {
+    match a.kind {
+        DataKind::Bursts => {
+            let (lo, hi) = parse_range(&a.snr)?;
+            let ds = bursts(&BurstOptions { n: a.n, seed: a.seed, snr: (lo, hi), ..Default::default() }).map_err(render)?;
+            dataset::write_npz(&a.out, &ds).map_err(render)?;
+            let ones = ds.arrays["label"].data.iter().filter(|l| **l == 1.0).count();
+            println!(
+                "wrote {}: x ({} × 256, 256 Hz, white noise of unit variance), label ({ones} bursts, {} noise)",
+                a.out.display(),
+                a.n,
+                a.n - ones
+            );
+        }
+    }
+    Ok(())
+}
+
+fn parse_range(s: &str) -> Result<(f64, f64), String> {
+    let bad = || format!("error: expected a range LO..HI, got `{s}`");
+    let (lo, hi) = s.split_once("..").ok_or_else(bad)?;
+    Ok((lo.trim().parse().map_err(|_| bad())?, hi.trim().parse().map_err(|_| bad())?))
+}

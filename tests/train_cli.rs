@@ -1,0 +1,81 @@
+//! `gwml data`, `gwml train` and `gwml predict` end to end: a dataset is
+//! written, a CNN is trained with checkpoints and resumed, and predictions
+//! are written with one row per example.
+
+#[path = "common/cli.rs"]
+mod cli;
+use cli::gwml;
+use gwml::runtime::dataset::Dataset;
+use std::path::Path;
+
+#[test]
+fn data_train_resume_and_predict() {
+    let dir = std::env::temp_dir().join(format!("gwml-train-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |name: &str| dir.join(name).display().to_string();
+    let (train, val, ck) = (p("train.npz"), p("val.npz"), p("ck"));
+    for (path, seed, n) in [(&train, "1", "96"), (&val, "2", "32")] {
+        let (ok, out, err) = gwml(&["data", "bursts", "--n", n, "--seed", seed, "--out", path]);
+        assert!(ok, "{err}");
+        assert!(out.contains(&format!("x ({n} × 256")), "{out}");
+    }
+    let ds = Dataset::read(Path::new(&train)).unwrap();
+    assert_eq!(ds.arrays["x"].shape, vec![96, 256]);
+    let train_args = |epochs: &'static str| {
+        vec![
+            "train",
+            "examples/burst_cnn.gw",
+            "--data",
+            &train,
+            "--val",
+            &val,
+            "--epochs",
+            epochs,
+            "--batch",
+            "16",
+            "--checkpoint",
+            &ck,
+            "--threads",
+            "2",
+        ]
+    };
+    let (ok, out, err) = gwml(&train_args("1"));
+    assert!(ok, "{err}");
+    assert!(out.contains("epoch 1/1") && out.contains("val loss") && out.contains("cnn.k2: 1024 values"), "{out}");
+    let (ok, out, err) = gwml(&[train_args("2"), vec!["--resume", "--plot", &p("curves.png")]].concat());
+    assert!(ok, "{err}");
+    assert!(err.contains("resumed from") && err.contains("after epoch 1"), "{err}");
+    assert!(out.contains("epoch 2/2"), "{out}");
+    assert!(Path::new(&p("curves.png")).exists());
+    // Predict on the first rows of the validation set.
+    let x: Vec<f64> = Dataset::read(Path::new(&val)).unwrap().arrays["x"].data[..3 * 256].to_vec();
+    let xs = gwml::runtime::dataset::Array::new(vec![3, 256], x).unwrap();
+    gwml::runtime::dataset::write_npy(Path::new(&p("x.npy")), &xs).unwrap();
+    let (ok, out, err) = gwml(&[
+        "predict",
+        "examples/burst_cnn.gw",
+        "--weights",
+        &format!("{ck}/best.safetensors"),
+        "--input",
+        &format!("x={}", p("x.npy")),
+        "--output",
+        &format!("logits={}", p("logits.npy")),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("(3 × 2)"), "{out}");
+    let logits = Dataset::read(Path::new(&p("logits.npy"))).unwrap();
+    assert_eq!(logits.arrays["logits"].shape, vec![3, 2]);
+    assert!(logits.arrays["logits"].data.iter().all(|v| v.is_finite()));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn training_errors_are_clear() {
+    let (ok, _, err) = gwml(&["train", "examples/burst_cnn.gw", "--data", "missing.npz", "--epochs", "1"]);
+    assert!(!ok && err.contains("missing.npz"), "{err}");
+    let (ok, _, err) = gwml(&["train", "examples/burst_cnn.gw", "--data", "missing.npz", "--resume"]);
+    assert!(!ok, "{err}");
+    let (ok, _, err) = gwml(&["train", "examples/chirp_fit.gw", "--data", "examples/chirp_fit.gw"]);
+    assert!(!ok && err.starts_with("error:"), "{err}");
+}
