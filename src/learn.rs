@@ -135,14 +135,14 @@ pub fn predict(a: PredictArgs) -> Result<(), String> {
     let func = scene.ir();
     let mut bound = 0;
     for t in &ck.tensors {
-        if func.inputs.iter().any(|i| i.trainable && i.name == t.name) {
+        if func.inputs.iter().any(|i| i.is_weight() && i.name == t.name) {
             run.input_real(&t.name, &t.data).map_err(render)?;
             bound += 1;
         } else if t.shape.is_empty() && func.params.iter().any(|p| p.name == t.name) {
             run.param(&t.name, t.data[0]).map_err(render)?;
         }
     }
-    let weights = func.inputs.iter().filter(|i| i.trainable).count();
+    let weights = func.inputs.iter().filter(|i| i.is_weight()).count();
     if bound < weights {
         return Err(format!("error: {} holds {bound} of the scene's {weights} weight tensors", a.weights.display()));
     }

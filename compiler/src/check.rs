@@ -82,6 +82,7 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("max_pool", "max_pool(x, window, stride: window): the largest value of each window of x [channels, n]"),
     ("avg_pool", "avg_pool(x, window, stride: window): the mean of each window of x [channels, n]"),
     ("global_avg_pool", "global_avg_pool(x): the mean over positions of x [channels, n], one value per channel"),
+    ("dropout", "dropout(x, rate): x with each value zeroed with probability rate and the rest scaled by 1/(1 - rate) while training; x itself otherwise"),
     ("index", "index(n): a grid of n points 0, 1, ..., n-1, e.g. classes (in `grid` declarations)"),
     ("frequencies", "frequencies(from:, to:, step:): a frequency grid (in `grid` declarations)"),
     ("spectrum", "spectrum(t): the grid of rfft bins of time grid t, 0 Hz to the Nyquist frequency (in `grid` declarations)"),
@@ -305,7 +306,14 @@ impl<'a> Checker<'a> {
                     if let Some((ity, dim, scale, unit)) = self.type_ann(ty, &scope) {
                         let default = default.as_ref().and_then(|e| self.input_default(&b.func, &scope, e, name, ity, dim));
                         let idx = b.func.inputs.len() as u32;
-                        b.func.inputs.push(ir::InputInfo { name: name.node.clone(), ty: ity, scale, unit, default, trainable: false });
+                        b.func.inputs.push(ir::InputInfo {
+                            name: name.node.clone(),
+                            ty: ity,
+                            scale,
+                            unit,
+                            default,
+                            role: ir::InputRole::Data,
+                        });
                         let v = b.push(Op::Input(idx));
                         scope.values.insert(name.node.clone(), Tv { v, dim });
                     } else {
@@ -379,7 +387,7 @@ impl<'a> Checker<'a> {
             if self.modules.get(&w.node).is_some_and(|m| m.learned) {
                 let prefix = format!("{}.", w.node);
                 let weights: Vec<usize> = (0..b.func.inputs.len())
-                    .filter(|i| b.func.inputs[*i].trainable && b.func.inputs[*i].name.starts_with(&prefix))
+                    .filter(|i| b.func.inputs[*i].is_weight() && b.func.inputs[*i].name.starts_with(&prefix))
                     .collect();
                 if weights.is_empty() {
                     self.error(

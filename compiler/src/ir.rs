@@ -499,9 +499,29 @@ pub struct InputInfo {
     pub unit: String,
     /// Data used when none is bound (base units), from the input's default.
     pub default: Option<Vec<num_complex::Complex64>>,
+    /// What the input is for.
+    pub role: InputRole,
+}
+
+impl InputInfo {
+    /// Whether it is a weight tensor (trainable).
+    pub fn is_weight(&self) -> bool {
+        self.role == InputRole::Weight
+    }
+}
+
+/// What a scene input is for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum InputRole {
+    /// Data the caller binds (or its default).
+    Data,
     /// A weight tensor of a `learned` component (initialised in `default`),
     /// which `grad ... wrt` may name.
-    pub trainable: bool,
+    Weight,
+    /// The mask of a `dropout(x, rate)`: all ones by default (evaluation);
+    /// a trainer binds a fresh mask per example, each element 0 with
+    /// probability `rate` and 1/(1 − rate) otherwise.
+    DropoutMask(f64),
 }
 
 /// A real array over a grid computed at compile time.

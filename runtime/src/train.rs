@@ -19,9 +19,9 @@ use crate::checkpoint::{self, Checkpoint, Tensor};
 use crate::dataset::{Array, Dataset};
 use crate::optim::{OptimConfig, OptimState, Optimizer};
 use crate::{Error, Outputs, Run, Scene, Value};
-use gwml_compiler::ir::{Function, Shape};
+use gwml_compiler::ir::{Function, InputRole, Shape};
 use rand::seq::SliceRandom;
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -92,6 +92,8 @@ pub struct Trainer<'s> {
     opts: TrainOptions,
     slots: Vec<Slot>,
     values: Vec<f64>,
+    /// Dropout masks: (input name, rate, elements).
+    masks: Vec<(String, f64, usize)>,
     optim: Optimizer,
     epoch: usize,
     best_val: f64,
@@ -135,12 +137,20 @@ impl<'s> Trainer<'s> {
         if opts.batch == 0 || opts.threads == 0 {
             return Err(Error::Bind("the batch size and the thread count must be at least 1".into()));
         }
+        let masks = func
+            .inputs
+            .iter()
+            .filter_map(|i| match i.role {
+                InputRole::DropoutMask(rate) => Some((i.name.clone(), rate, func.len_of(i.ty.shape))),
+                _ => None,
+            })
+            .collect();
         let optim = Optimizer::new(opts.optim, values.len())?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(opts.threads)
             .build()
             .map_err(|e| Error::Bind(format!("cannot start {} training threads: {e}", opts.threads)))?;
-        Ok(Trainer { scene, opts, slots, values, optim, epoch: 0, best_val: f64::INFINITY, bad_epochs: 0, pool })
+        Ok(Trainer { scene, opts, slots, values, masks, optim, epoch: 0, best_val: f64::INFINITY, bad_epochs: 0, pool })
     }
 
     /// Epochs completed so far.
@@ -285,6 +295,9 @@ impl<'s> Trainer<'s> {
             Partial { loss_sum: 0.0, correct: 0, counted: 0, grad_sum: if grad { vec![0.0; self.values.len()] } else { vec![] } };
         for &i in chunk {
             ex.bind(&mut run, i)?;
+            if grad {
+                self.bind_dropout_masks(&mut run, i)?;
+            }
             let out = if grad { run.value_and_grad()? } else { run.forward()? };
             part.loss_sum += out.scalar(&self.opts.loss)?;
             if let Some(hit) = ex.correct(&out, &self.opts, i) {
@@ -296,6 +309,23 @@ impl<'s> Trainer<'s> {
             }
         }
         Ok(part)
+    }
+
+    /// Fresh dropout masks for example `i` of this epoch, from a generator
+    /// seeded by (seed, epoch, example), so resumed runs draw the same masks.
+    fn bind_dropout_masks(&self, run: &mut Run<'_>, i: usize) -> Result<(), Error> {
+        if self.masks.is_empty() {
+            return Ok(());
+        }
+        let seed =
+            self.opts.seed ^ (self.epoch as u64).wrapping_mul(0xD1B5_4A32_D192_ED03) ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+        for (name, rate, len) in &self.masks {
+            let keep = 1.0 / (1.0 - rate);
+            let mask: Vec<f64> = (0..*len).map(|_| if rng.random_bool(*rate) { 0.0 } else { keep }).collect();
+            run.input_real(name, &mask)?;
+        }
+        Ok(())
     }
 
     fn add_grads(&self, out: &Outputs, sum: &mut [f64]) -> Result<(), Error> {
@@ -432,7 +462,7 @@ impl<'d> Examples<'d> {
     fn new(func: &Function, data: &'d Dataset, opts: &TrainOptions) -> Result<Examples<'d>, Error> {
         let len = data.examples()?;
         let mut sources = Vec::new();
-        for input in func.inputs.iter().filter(|i| !i.trainable) {
+        for input in func.inputs.iter().filter(|i| i.role == InputRole::Data) {
             let want = func.len_of(input.ty.shape);
             let Ok(a) = data.get(&input.name) else {
                 if input.default.is_some() {

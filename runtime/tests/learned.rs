@@ -45,7 +45,7 @@ fn check_weight_gradients(src: &str, data: &[(&str, Vec<f64>)], output: &str) ->
         .ir()
         .inputs
         .iter()
-        .filter(|i| i.trainable)
+        .filter(|i| i.is_weight())
         .map(|i| (i.name.clone(), i.default.as_ref().unwrap().iter().map(|z| z.re).collect()))
         .collect();
     for (name, w0) in &weights {
@@ -122,6 +122,7 @@ fn activations_and_losses_have_correct_weight_gradients() {
         "cross_entropy(w, softmax(x))",
         "mse(w, x)",
         "sum(layer_norm(w) * x)",
+        "sum(dropout(w * w, 0.3) * x)",
     ] {
         let src = wrap(&format!("    weight w: [{n}] = normal(std: 1.0, seed: 5)\n    {formula}"), n);
         check_weight_gradients(&src, &[("x", x.clone())], "out");

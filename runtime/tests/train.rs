@@ -117,3 +117,31 @@ fn sum_sg_n(f0: f64, n: &[f64]) -> f64 {
         })
         .sum()
 }
+
+#[test]
+fn dropout_masks_apply_while_training_and_not_in_evaluation() {
+    // loss = Σ dropout(w, 0.5) · x with x = 1: one SGD step of rate 1 from
+    // w = 0 on one example moves each weight by -mask (0 or -2); evaluation
+    // uses no mask, so the loss is then Σ w.
+    let src = "learned net(x) {\n    weight w: [400] = zeros\n    sum(dropout(w, 0.5) * x)\n}\n\
+               scene s {\n  grid g = index(400)\n  input x: real[g] = 0.0\n  output loss = net(x)\n  grad loss wrt net\n}\n";
+    let model = Model::from_source("dropout.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    assert!(
+        matches!(scene.ir().inputs.iter().find(|i| i.name == "net.dropout1").unwrap().role, gwml_compiler::ir::InputRole::DropoutMask(r) if r == 0.5)
+    );
+    let data = {
+        let mut arrays = std::collections::BTreeMap::new();
+        arrays.insert("x".to_string(), gwml_runtime::dataset::Array::new(vec![1, 400], vec![1.0; 400]).unwrap());
+        gwml_runtime::dataset::Dataset { arrays }
+    };
+    let sgd = OptimConfig { method: Method::sgd(0.0), lr: 1.0, schedule: Schedule::Constant, clip_norm: None };
+    let mut trainer = Trainer::new(&scene, TrainOptions { batch: 1, threads: 1, optim: sgd, ..options(1, 1.0) }).unwrap();
+    trainer.fit(&data, None, |_, _| {}, |_| {}).unwrap();
+    let w = &trainer.weights()[0].1;
+    let dropped = w.iter().filter(|v| **v == 0.0).count();
+    assert!(w.iter().all(|v| *v == 0.0 || *v == -2.0), "{w:?}");
+    assert!((150..250).contains(&dropped), "{dropped} of 400 dropped at rate 0.5");
+    let eval = trainer.evaluate(&data).unwrap();
+    assert_eq!(eval.loss, w.iter().sum::<f64>());
+}

@@ -9,7 +9,7 @@
 use super::{Checker, Scope, Tv};
 use crate::builder::Builder;
 use crate::diagnostics::{did_you_mean, Diagnostic};
-use crate::ir::{self, Conv, Elem, GridId, Op, Pool, Shape, TensorOp, Ty};
+use crate::ir::{self, Conv, Elem, GridId, InputRole, Op, Pool, Shape, TensorOp, Ty};
 use crate::source::{Span, Spanned};
 use crate::syntax::ast::{self, Expr, ExprKind, ModuleDef, WeightDecl};
 use crate::units::Dim;
@@ -18,7 +18,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};
 
 /// The layer builtins (their usage lines are in `BUILTINS`).
-pub const LAYERS: &[&str] = &["dense", "conv1d", "max_pool", "avg_pool", "global_avg_pool"];
+pub const LAYERS: &[&str] = &["dense", "conv1d", "max_pool", "avg_pool", "global_avg_pool", "dropout"];
 
 /// Initialisers a `weight` may use.
 const INITIALISERS: &[&str] = &["zeros", "ones", "normal", "uniform", "glorot", "he"];
@@ -100,7 +100,7 @@ impl<'a> Checker<'a> {
             scale: 1.0,
             unit: String::new(),
             default: Some(data.into_iter().map(|x| C64::new(x, 0.0)).collect()),
-            trainable: true,
+            role: InputRole::Weight,
         })
     }
 
@@ -258,6 +258,7 @@ impl<'a> Checker<'a> {
         let (lo, hi) = match name {
             "dense" | "conv1d" => (2, 3),
             "max_pool" | "avg_pool" => (if opt("window").is_some() { 1 } else { 2 }, 2),
+            "dropout" => (2, 2),
             _ => (1, 1),
         };
         if positional.len() < lo || positional.len() > hi {
@@ -275,7 +276,8 @@ impl<'a> Checker<'a> {
             );
             return None;
         }
-        let window_arg = if matches!(name, "max_pool" | "avg_pool") && positional.len() == 2 { positional.get(1).copied() } else { None };
+        let window_arg =
+            if matches!(name, "max_pool" | "avg_pool" | "dropout") && positional.len() == 2 { positional.get(1).copied() } else { None };
         let array_args = if window_arg.is_some() { &positional[..1] } else { &positional[..] };
         let mut vals = Vec::new();
         for a in array_args {
@@ -288,6 +290,10 @@ impl<'a> Checker<'a> {
             "conv1d" => {
                 let conv = (opt("stride").unwrap_or(1), opt("padding").unwrap_or(0), opt("dilation").unwrap_or(1));
                 self.conv1d(b, x, vals[1], vals.get(2).copied(), conv)
+            }
+            "dropout" => {
+                let rate_arg = window_arg.expect("dropout takes two arguments");
+                self.dropout(b, x, rate_arg)
             }
             "max_pool" | "avg_pool" => {
                 let window = match (window_arg, opt("window")) {
@@ -408,6 +414,33 @@ impl<'a> Checker<'a> {
             None => y,
         };
         Some(Tv { v, dim: Dim::NONE })
+    }
+
+    /// `dropout(x, rate)`: `x` times a mask input (see [`InputRole::DropoutMask`]),
+    /// all ones unless a trainer binds one.
+    fn dropout(&mut self, b: &mut Builder, x: (Tv, Span), rate: &'a ast::Arg) -> Option<Tv> {
+        let (p, dim) = self.const_eval(&rate.value)?;
+        if !dim.is_none() || !(0.0..1.0).contains(&p) {
+            self.error(
+                Diagnostic::error(rate.value.span, format!("the dropout rate must be a number in [0, 1), found {p}"))
+                    .with_help("e.g. `dropout(h, 0.2)` zeroes a fifth of the values while training"),
+            );
+            return None;
+        }
+        let owner = self.call_stack.last().map(|(n, _)| format!("{n}.")).unwrap_or_default();
+        let k = b.func.inputs.iter().filter(|i| matches!(i.role, InputRole::DropoutMask(_))).count() + 1;
+        let ty = b.ty(x.0.v);
+        let len = b.func.len_of(ty.shape);
+        b.func.inputs.push(ir::InputInfo {
+            name: format!("{owner}dropout{k}"),
+            ty,
+            scale: 1.0,
+            unit: String::new(),
+            default: Some(vec![C64::new(1.0, 0.0); len]),
+            role: InputRole::DropoutMask(p),
+        });
+        let mask = b.push(Op::Input(b.func.inputs.len() as u32 - 1));
+        Some(Tv { v: b.mul(x.0.v, mask), dim: Dim::NONE })
     }
 
     fn pool(&mut self, b: &mut Builder, x: (Tv, Span), window: u32, stride: u32, max: bool) -> Option<Tv> {
