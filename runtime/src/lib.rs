@@ -467,6 +467,15 @@ impl<'s> Run<'s> {
                 "output `{name}` is not finite (NaN or infinity) at these params; check params against their bounds and the data"
             )));
         }
+        if let Some((o, p, g)) = grads.iter().find(|(_, _, g)| !g.is_finite()) {
+            return Err(Error::Bind(format!(
+                "gradient d{o}/d{p} is {g} at these params: the derivative does not exist there (e.g. sqrt or log at 0)"
+            )));
+        }
+        if let Some((o, i, g)) = input_grads.iter().find(|(_, _, g)| g.iter().any(|x| !x.is_finite())) {
+            let k = g.iter().position(|x| !x.is_finite()).unwrap_or(0);
+            return Err(Error::Bind(format!("gradient d{o}/d{i} is {} at element {k}: the derivative does not exist there", g[k])));
+        }
         Ok(Outputs { params: params_used, values, grads, input_grads })
     }
 }
