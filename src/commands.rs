@@ -43,7 +43,7 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
     let t1 = Instant::now();
     let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
     let t_fwd = t1.elapsed();
-    let has_grads = !scene.ir().grads.is_empty();
+    let has_grads = scene.ir().has_gradients();
     let t2 = Instant::now();
     let grad_kernel = if has_grads { Some(scene.gradient_kernel().map_err(render)?) } else { None };
     let t_grad = t2.elapsed();
@@ -54,16 +54,20 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
         Some(Emit::Ast) | None => {
             let f = scene.ir();
             println!(
-                "scene {}: {} param{}, {} input{}, {} output{}, {} gradient{} (precision {}, math {})",
+                "scene {}: {} param{}, {} input{}{}, {} output{}, {} gradient{} (precision {}, math {})",
                 f.name,
                 f.params.len(),
                 plural(f.params.len()),
                 f.inputs.len(),
                 plural(f.inputs.len()),
+                match f.inputs.iter().filter(|i| i.is_weight()).count() {
+                    0 => String::new(),
+                    w => format!(" ({w} weight tensor{})", plural(w)),
+                },
                 f.outputs.len(),
                 plural(f.outputs.len()),
-                f.grads.len(),
-                plural(f.grads.len()),
+                f.grads.len() + f.input_grads.len(),
+                plural(f.grads.len() + f.input_grads.len()),
                 f.precision,
                 f.math
             );
@@ -193,6 +197,16 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             let label = format!("d{o}/d{p}");
             let per = if pi.unit == "1" { String::new() } else { format!("per {}", pi.unit) };
             println!("{}", format!("  {label:gw$} = {g} {per}").trim_end());
+        }
+    }
+    if !out.input_grads.is_empty() {
+        println!("weight gradients:");
+        let gw = out.input_grads.iter().map(|(o, i, _)| o.len() + i.len() + 3).max().unwrap_or(0);
+        for (o, i, g) in &out.input_grads {
+            let label = format!("d{o}/d{i}");
+            let (lo, hi) = g.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+            let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
+            println!("  {label:gw$} = {} values in [{lo:e}, {hi:e}], L2 norm {norm:e}", g.len());
         }
     }
     Ok(())

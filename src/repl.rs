@@ -431,7 +431,7 @@ impl Repl {
                     let v: f64 = v.parse().map_err(|_| format!("error: `{v}` is not a number\n"))?;
                     run.param(k, v).map_err(|e| self.render(e))?;
                 }
-                let has_grads = !scene.ir().grads.is_empty();
+                let has_grads = scene.ir().has_gradients();
                 let out = if has_grads { run.value_and_grad() } else { run.forward() }.map_err(|e| self.render(e))?;
                 let f = scene.ir();
                 for ((n, v), o) in out.values.iter().zip(&f.outputs) {

@@ -144,7 +144,7 @@ pub fn sweep(
     for (i, config) in configs.into_iter().enumerate() {
         progress(i, count, config);
         let compiled = model.scene_with(scene, Options { precision: Some(config.precision), math: Some(config.math) })?;
-        let has_grads = !compiled.ir().grads.is_empty();
+        let has_grads = compiled.ir().has_gradients();
         let mut run = compiled.bind();
         bind(&mut run)?;
         let first = if has_grads { run.value_and_grad() } else { run.forward() };

@@ -618,6 +618,11 @@ impl Function {
             .collect()
     }
 
+    /// Whether the scene asks for any gradient (of params or of weights).
+    pub fn has_gradients(&self) -> bool {
+        !self.grads.is_empty() || !self.input_grads.is_empty()
+    }
+
     /// Renames every root (outputs and computed gradients) through `map`,
     /// after a pass renumbered the instructions.
     pub fn remap_roots(&mut self, map: impl Fn(Value) -> Value) {
