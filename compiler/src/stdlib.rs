@@ -7,6 +7,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("burst", include_str!("../../stdlib/burst.gw")),
     ("chirp", include_str!("../../stdlib/chirp.gw")),
     ("detector", include_str!("../../stdlib/detector.gw")),
+    ("glitch", include_str!("../../stdlib/glitch.gw")),
     ("nn", include_str!("../../stdlib/nn.gw")),
     ("psd", include_str!("../../stdlib/psd.gw")),
     ("taylorf2", include_str!("../../stdlib/taylorf2.gw")),
