@@ -7,7 +7,7 @@ use crate::{DataArgs, DataKind, PredictArgs, ScheduleArg, TrainArgs, TrainOptimi
 use gwml::runtime::checkpoint;
 use gwml::runtime::dataset::{self, Array, Dataset};
 use gwml::runtime::optim::{Method, OptimConfig, Schedule};
-use gwml::runtime::synth::{bursts, BurstOptions};
+use gwml::runtime::synth::{bursts, glitches, BurstOptions, GlitchOptions, GLITCH_CLASSES};
 use gwml::runtime::train::{EpochReport, TrainOptions, Trainer};
 use gwml::{Model, Value};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -193,7 +193,7 @@ pub fn predict(a: PredictArgs) -> Result<(), String> {
 pub fn data(a: DataArgs) -> Result<(), String> {
     match a.kind {
         DataKind::Bursts => {
-            let (lo, hi) = parse_range(&a.snr)?;
+            let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("6..15"))?;
             let ds = bursts(&BurstOptions { n: a.n, seed: a.seed, snr: (lo, hi), ..Default::default() }).map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;
             let ones = ds.arrays["label"].data.iter().filter(|l| **l == 1.0).count();
@@ -203,6 +203,17 @@ pub fn data(a: DataArgs) -> Result<(), String> {
                 a.n,
                 a.n - ones
             );
+        }
+        DataKind::Glitch => {
+            let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("8..30"))?;
+            let ds = glitches(&GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi) }).map_err(render)?;
+            dataset::write_npz(&a.out, &ds).map_err(render)?;
+            let counts: Vec<String> = GLITCH_CLASSES
+                .iter()
+                .enumerate()
+                .map(|(c, name)| format!("{} {name}", ds.arrays["label"].data.iter().filter(|l| **l == c as f64).count()))
+                .collect();
+            println!("wrote {}: x ({} × 4096, whitened, 4096 Hz), label ({})", a.out.display(), a.n, counts.join(", "));
         }
     }
     Ok(())

@@ -314,6 +314,10 @@ pub enum DataKind {
     /// Sine-Gaussian bursts in white noise (label 1) or noise alone (label 0):
     /// `x` of 256 samples at 256 Hz, f0 20-100 Hz, Q 3-12.
     Bursts,
+    /// Whitened 1 s segments at 4096 Hz of six classes (label 0 None, 1 Blip,
+    /// 2 Koi Fish, 3 Whistle, 4 Scratchy, 5 Chirp) in aLIGO noise, SNR 8-30
+    /// by default; `x` is n × 4096.
+    Glitch,
 }
 
 #[derive(clap::Args)]
@@ -327,9 +331,9 @@ pub struct DataArgs {
     /// Seed (use different seeds for training, validation and test sets).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Range of the optimal signal-to-noise ratio of the bursts.
-    #[arg(long, default_value = "6..15")]
-    pub snr: String,
+    /// Range of the optimal signal-to-noise ratio [default: 6..15 for bursts, 8..30 for glitch].
+    #[arg(long)]
+    pub snr: Option<String>,
     /// The .npz file to write.
     #[arg(long, value_name = "PATH.npz")]
     pub out: PathBuf,

@@ -79,3 +79,17 @@ fn training_errors_are_clear() {
     let (ok, _, err) = gwml(&["train", "examples/chirp_fit.gw", "--data", "examples/chirp_fit.gw"]);
     assert!(!ok && err.starts_with("error:"), "{err}");
 }
+
+#[test]
+fn glitch_data_has_six_classes_of_whitened_segments() {
+    let path = std::env::temp_dir().join(format!("gwml-glitch-data-{}.npz", std::process::id()));
+    let (ok, out, err) = gwml(&["data", "glitch", "--n", "24", "--seed", "5", "--out", &path.display().to_string()]);
+    assert!(ok, "{err}");
+    assert!(out.contains("x (24 × 4096") && out.contains("Koi Fish") && out.contains("Chirp"), "{out}");
+    let ds = Dataset::read(&path).unwrap();
+    assert_eq!(ds.arrays["x"].shape, vec![24, 4096]);
+    assert!(ds.arrays["label"].data.iter().all(|l| (0.0..6.0).contains(l) && l.fract() == 0.0));
+    let _ = std::fs::remove_file(&path);
+    let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--snr", "30..8", "--out", "/tmp/never.npz"]);
+    assert!(!ok && err.contains("SNR range"), "{err}");
+}
