@@ -204,7 +204,7 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
                 return Err(Error::Bind("the glitch scene's output is not a real array".into()));
             };
             let norm = w.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !(norm > 0.0) {
+            if norm.is_nan() || norm <= 0.0 {
                 return Err(Error::Bind(format!("a {} signal whitened to zero", GLITCH_CLASSES[class])));
             }
             for (r, v) in row.iter_mut().zip(&w) {
@@ -264,9 +264,9 @@ mod glitch_tests {
         let a = glitches(&o).unwrap();
         assert_eq!(a, glitches(&o).unwrap());
         let labels = &a.arrays["label"].data;
-        for c in 0..GLITCH_CLASSES.len() {
+        for (c, name) in GLITCH_CLASSES.iter().enumerate() {
             let k = labels.iter().filter(|l| **l == c as f64).count();
-            assert!(k >= 8, "class {} drawn {k} times of 120", GLITCH_CLASSES[c]);
+            assert!(k >= 8, "class {name} drawn {k} times of 120");
         }
         // Unit-variance noise plus a signal of optimal SNR 60: the row's
         // power exceeds the noise's 4096 by 3600 (the noise's own spread is
