@@ -272,13 +272,13 @@ mod glitch_tests {
         // power exceeds the noise's 4096 by 3600 (the noise's own spread is
         // ±90 per row, the cross term ±120).
         let x = &a.arrays["x"];
-        for i in 0..120 {
+        for (i, label) in labels.iter().enumerate() {
             let p: f64 = x.row(i).iter().map(|v| v * v).sum();
             let excess = p - 4096.0;
-            if labels[i] == 0.0 {
+            if *label == 0.0 {
                 assert!(excess.abs() < 450.0, "noise row {i}: excess power {excess}");
             } else {
-                assert!((excess - 3600.0).abs() < 600.0, "class {} row {i}: excess {excess}", labels[i]);
+                assert!((excess - 3600.0).abs() < 600.0, "class {label} row {i}: excess {excess}");
             }
         }
     }
