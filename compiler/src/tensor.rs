@@ -34,15 +34,40 @@ pub fn apply<T: Float>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
                 axpy(a[r], &b[..k], &mut out[r * k..(r + 1) * k]);
             }
         }
-        TensorOp::Conv(c) => conv_taps(c, |o, ch, j, t, x_index| {
-            out[o * u(c.len_out) + t] = out[o * u(c.len_out) + t] + b[weight_index(c, o, ch, j)] * a[x_index];
+        TensorOp::Conv(c) => conv_rows(c, |o, ch, j, run| {
+            let w = b[weight_index(c, o, ch, j)];
+            let x = &a[ch * u(c.len_in)..][run.start..];
+            let y = &mut out[o * u(c.len_out)..][run.t0..run.t1];
+            if run.stride == 1 {
+                axpy(w, &x[..y.len()], y);
+            } else {
+                for (yi, xi) in y.iter_mut().zip(x.iter().step_by(run.stride)) {
+                    *yi = *yi + w * *xi;
+                }
+            }
         }),
-        TensorOp::ConvBackData(c) => conv_taps(c, |o, ch, j, t, x_index| {
-            out[x_index] = out[x_index] + b[weight_index(c, o, ch, j)] * a[o * u(c.len_out) + t];
+        TensorOp::ConvBackData(c) => conv_rows(c, |o, ch, j, run| {
+            let w = b[weight_index(c, o, ch, j)];
+            let dy = &a[o * u(c.len_out)..][run.t0..run.t1];
+            let dx = &mut out[ch * u(c.len_in)..][run.start..];
+            if run.stride == 1 {
+                axpy(w, dy, &mut dx[..dy.len()]);
+            } else {
+                for (xi, yi) in dx.iter_mut().step_by(run.stride).zip(dy) {
+                    *xi = *xi + w * *yi;
+                }
+            }
         }),
-        TensorOp::ConvBackWeight(c) => conv_taps(c, |o, ch, j, t, x_index| {
+        TensorOp::ConvBackWeight(c) => conv_rows(c, |o, ch, j, run| {
+            let dy = &a[o * u(c.len_out)..][run.t0..run.t1];
+            let x = &b[ch * u(c.len_in)..][run.start..];
             let w = weight_index(c, o, ch, j);
-            out[w] = out[w] + a[o * u(c.len_out) + t] * b[x_index];
+            out[w] = out[w]
+                + if run.stride == 1 {
+                    dot(dy, &x[..dy.len()])
+                } else {
+                    dy.iter().zip(x.iter().step_by(run.stride)).fold(T::zero(), |s, (d, x)| s + *d * *x)
+                };
         }),
         TensorOp::PoolPick(p) => pool_argmax(p, a, |src, dst| out[dst] = b[src]),
         TensorOp::PoolScatter(p) => pool_argmax(p, a, |src, dst| out[src] = out[src] + b[dst]),
@@ -61,14 +86,48 @@ pub fn apply<T: Float>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
         }
         TensorOp::SumRows { rows, cols } => {
             for (r, o) in out[..u(rows)].iter_mut().enumerate() {
-                *o = a[r * u(cols)..(r + 1) * u(cols)].iter().fold(T::zero(), |s, x| s + *x);
+                *o = sum(&a[r * u(cols)..(r + 1) * u(cols)]);
             }
         }
     }
 }
 
+/// Lanes of the partial sums in [`dot`] and [`sum`]: independent
+/// accumulators the compiler keeps in vector registers (a sum in one
+/// accumulator is a chain of dependent adds that cannot be vectorised).
+const LANES: usize = 8;
+
+/// `Σ x_i y_i` over the common length, in [`LANES`] interleaved partial
+/// sums added pairwise at the end (a fixed order: deterministic).
 fn dot<T: Float>(x: &[T], y: &[T]) -> T {
-    x.iter().zip(y).fold(T::zero(), |s, (a, b)| s + *a * *b)
+    let n = x.len().min(y.len());
+    let (x, y) = (&x[..n], &y[..n]);
+    let mut acc = [T::zero(); LANES];
+    let (xc, yc) = (x.chunks_exact(LANES), y.chunks_exact(LANES));
+    let tail = xc.remainder().iter().zip(yc.remainder()).fold(T::zero(), |s, (a, b)| s + *a * *b);
+    for (a, b) in xc.zip(yc) {
+        for l in 0..LANES {
+            acc[l] = acc[l] + a[l] * b[l];
+        }
+    }
+    reduce_lanes(acc) + tail
+}
+
+/// `Σ x_i`, in the same lanes as [`dot`].
+fn sum<T: Float>(x: &[T]) -> T {
+    let mut acc = [T::zero(); LANES];
+    let xc = x.chunks_exact(LANES);
+    let tail = xc.remainder().iter().fold(T::zero(), |s, a| s + *a);
+    for a in xc {
+        for l in 0..LANES {
+            acc[l] = acc[l] + a[l];
+        }
+    }
+    reduce_lanes(acc) + tail
+}
+
+fn reduce_lanes<T: Float>(acc: [T; LANES]) -> T {
+    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]))
 }
 
 fn axpy<T: Float>(alpha: T, x: &[T], y: &mut [T]) {
@@ -81,22 +140,43 @@ fn weight_index(c: Conv, o: usize, ch: usize, j: usize) -> usize {
     (o * c.c_in as usize + ch) * c.kernel as usize + j
 }
 
-/// Calls `tap(o, c, j, t, x_index)` for every term of the convolution sum
-/// whose input sample lies inside the array (padding contributes zeros).
-fn conv_taps(c: Conv, mut tap: impl FnMut(usize, usize, usize, usize, usize)) {
+/// The terms of a convolution sum for one tap `(o, c, j)` whose input
+/// sample lies inside the array (padding contributes zeros): output
+/// positions `t0..t1` read input samples `start + (t - t0) * stride`.
+#[derive(Clone, Copy, Debug)]
+struct Run {
+    t0: usize,
+    t1: usize,
+    start: usize,
+    stride: usize,
+}
+
+/// Calls `row(o, c, j, run)` for every tap `(o, c, j)` with a non-empty
+/// [`Run`], in the order `o`, `c`, `j`: every output element sums its
+/// terms in that order, as a loop over all taps would.
+fn conv_rows(c: Conv, mut row: impl FnMut(usize, usize, usize, Run)) {
     let u = |x: u32| x as usize;
     for o in 0..u(c.c_out) {
         for ch in 0..u(c.c_in) {
             for j in 0..u(c.kernel) {
-                for t in 0..u(c.len_out) {
-                    let pos = (t * u(c.stride) + j * u(c.dilation)) as isize - c.padding as isize;
-                    if pos >= 0 && (pos as usize) < u(c.len_in) {
-                        tap(o, ch, j, t, ch * u(c.len_in) + pos as usize);
-                    }
+                if let Some(run) = tap_run(c, j) {
+                    row(o, ch, j, run);
                 }
             }
         }
     }
+}
+
+/// The [`Run`] of kernel tap `j`, or `None` when it only meets padding.
+fn tap_run(c: Conv, j: usize) -> Option<Run> {
+    let stride = (c.stride as usize).max(1);
+    let s = stride as i64;
+    // Output t reads input position t * stride + off.
+    let off = j as i64 * c.dilation as i64 - c.padding as i64;
+    let t0 = if off >= 0 { 0 } else { (-off + s - 1) / s };
+    let last = c.len_in as i64 - 1 - off;
+    let t1 = if last < 0 { 0 } else { (last / s + 1).min(c.len_out as i64) };
+    (t0 < t1).then(|| Run { t0: t0 as usize, t1: t1 as usize, start: (t0 * s + off) as usize, stride })
 }
 
 /// Calls `f(src, dst)` for every input element `src` of every window `dst`.
