@@ -315,13 +315,14 @@ fn pool_argmax<T: Float>(p: Pool, x: &[T], mut f: impl FnMut(usize, usize)) {
     for ch in 0..u(p.channels) {
         for o in 0..u(p.len_out) {
             let start = ch * u(p.len_in) + o * u(p.stride);
-            let mut best = start;
-            for src in start + 1..start + u(p.window) {
-                if x[src] > x[best] || x[best].is_nan() {
-                    best = src;
+            let window = &x[start..start + u(p.window)];
+            let (mut best, mut top) = (0, window[0]);
+            for (w, v) in window.iter().enumerate().skip(1) {
+                if *v > top || top.is_nan() {
+                    (best, top) = (w, *v);
                 }
             }
-            f(best, ch * u(p.len_out) + o);
+            f(start + best, ch * u(p.len_out) + o);
         }
     }
 }
