@@ -7,12 +7,108 @@
 
 use crate::ir::{Conv, Pool, TensorOp};
 use num_traits::Float;
+use std::cell::RefCell;
+
+/// The element types of the kernels (f64 and f32), with their matrix
+/// product and a per-thread scratch buffer for the convolutions' unfolded
+/// input.
+pub trait Scalar: Float + 'static {
+    /// `c = a · b` (`beta` 0) or `c += a · b` (`beta` 1) for an `m × k`
+    /// matrix `a` and a `k × n` matrix `b` at element `(i, j)` of
+    /// `a[i * rsa + j * csa]` and `b[i * rsb + j * csb]`, and a row-major
+    /// `m × n` matrix `c` with rows `rsc` apart. Panics when a matrix does
+    /// not fit in its slice.
+    #[allow(clippy::too_many_arguments)]
+    fn gemm(dims: [usize; 3], a: &[Self], a_strides: [usize; 2], b: &[Self], b_strides: [usize; 2], beta: Self, c: &mut [Self], rsc: usize);
+
+    /// Calls `f` with a buffer of `len` elements (contents unspecified),
+    /// reused between calls on the same thread.
+    fn with_scratch<R>(len: usize, f: impl FnOnce(&mut [Self]) -> R) -> R;
+}
+
+/// The last element a strided matrix reads plus one, or 0 when empty.
+fn extent(rows: usize, cols: usize, [rs, cs]: [usize; 2]) -> usize {
+    if rows == 0 || cols == 0 {
+        0
+    } else {
+        (rows - 1) * rs + (cols - 1) * cs + 1
+    }
+}
+
+macro_rules! scalar {
+    ($t:ty, $gemm:ident, $scratch:ident) => {
+        thread_local! {
+            static $scratch: RefCell<Vec<$t>> = const { RefCell::new(Vec::new()) };
+        }
+
+        impl Scalar for $t {
+            fn gemm(
+                [m, k, n]: [usize; 3],
+                a: &[$t],
+                [rsa, csa]: [usize; 2],
+                b: &[$t],
+                [rsb, csb]: [usize; 2],
+                beta: $t,
+                c: &mut [$t],
+                rsc: usize,
+            ) {
+                assert!(extent(m, k, [rsa, csa]) <= a.len() && extent(k, n, [rsb, csb]) <= b.len());
+                assert!(extent(m, n, [rsc, 1]) <= c.len() && (m <= 1 || rsc >= n));
+                if m == 0 || n == 0 {
+                    return;
+                }
+                if k == 0 {
+                    if beta == 0.0 {
+                        c.iter_mut().for_each(|x| *x = 0.0);
+                    }
+                    return;
+                }
+                let i = |x: usize| x as isize;
+                // SAFETY: the asserts above keep every element of a, b and c
+                // inside its slice, and c's rows (rsc >= n apart, unit
+                // columns) do not alias; c is a unique borrow, so it
+                // overlaps neither a nor b.
+                unsafe {
+                    matrixmultiply::$gemm(
+                        m,
+                        k,
+                        n,
+                        1.0,
+                        a.as_ptr(),
+                        i(rsa),
+                        i(csa),
+                        b.as_ptr(),
+                        i(rsb),
+                        i(csb),
+                        beta,
+                        c.as_mut_ptr(),
+                        i(rsc),
+                        1,
+                    )
+                }
+            }
+
+            fn with_scratch<R>(len: usize, f: impl FnOnce(&mut [$t]) -> R) -> R {
+                $scratch.with(|s| {
+                    let mut s = s.borrow_mut();
+                    if s.len() < len {
+                        s.resize(len, 0.0);
+                    }
+                    f(&mut s[..len])
+                })
+            }
+        }
+    };
+}
+
+scalar!(f64, dgemm, SCRATCH_F64);
+scalar!(f32, sgemm, SCRATCH_F32);
 
 /// Computes `op` on operands `a` and `b` (ignored for unary ops) into
 /// `out`, which is overwritten. Slices must have the lengths
 /// [`TensorOp::operand_lens`] and [`TensorOp::out_len`] give; shorter ones
 /// are a caller bug and panic on indexing rather than read out of bounds.
-pub fn apply<T: Float>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
+pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
     let u = |x: u32| x as usize;
     out.fill(T::zero());
     match op {
@@ -34,41 +130,30 @@ pub fn apply<T: Float>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
                 axpy(a[r], &b[..k], &mut out[r * k..(r + 1) * k]);
             }
         }
-        TensorOp::Conv(c) => conv_rows(c, |o, ch, j, run| {
-            let w = b[weight_index(c, o, ch, j)];
-            let x = &a[ch * u(c.len_in)..][run.start..];
-            let y = &mut out[o * u(c.len_out)..][run.t0..run.t1];
-            if run.stride == 1 {
-                axpy(w, &x[..y.len()], y);
-            } else {
-                for (yi, xi) in y.iter_mut().zip(x.iter().step_by(run.stride)) {
-                    *yi = *yi + w * *xi;
-                }
-            }
-        }),
-        TensorOp::ConvBackData(c) => conv_rows(c, |o, ch, j, run| {
-            let w = b[weight_index(c, o, ch, j)];
-            let dy = &a[o * u(c.len_out)..][run.t0..run.t1];
-            let dx = &mut out[ch * u(c.len_in)..][run.start..];
-            if run.stride == 1 {
-                axpy(w, dy, &mut dx[..dy.len()]);
-            } else {
-                for (xi, yi) in dx.iter_mut().step_by(run.stride).zip(dy) {
-                    *xi = *xi + w * *yi;
-                }
-            }
-        }),
-        TensorOp::ConvBackWeight(c) => conv_rows(c, |o, ch, j, run| {
-            let dy = &a[o * u(c.len_out)..][run.t0..run.t1];
-            let x = &b[ch * u(c.len_in)..][run.start..];
-            let w = weight_index(c, o, ch, j);
-            out[w] = out[w]
-                + if run.stride == 1 {
-                    dot(dy, &x[..dy.len()])
-                } else {
-                    dy.iter().zip(x.iter().step_by(run.stride)).fold(T::zero(), |s, (d, x)| s + *d * *x)
-                };
-        }),
+        // The convolutions as matrix products with the unfolded input
+        // `col` (`c_in · kernel` rows of `len_out`, see `unfold`): y = W col,
+        // dW = dy colᵀ, and dx = fold(Wᵀ dy).
+        TensorOp::Conv(c) => {
+            let (rows, n) = (u(c.c_in * c.kernel), u(c.len_out));
+            T::with_scratch(rows * n, |col| {
+                unfold(c, a, col);
+                T::gemm([u(c.c_out), rows, n], b, [rows, 1], col, [n, 1], T::zero(), out, n);
+            });
+        }
+        TensorOp::ConvBackWeight(c) => {
+            let (rows, n) = (u(c.c_in * c.kernel), u(c.len_out));
+            T::with_scratch(rows * n, |col| {
+                unfold(c, b, col);
+                T::gemm([u(c.c_out), n, rows], a, [n, 1], col, [1, n], T::zero(), out, rows);
+            });
+        }
+        TensorOp::ConvBackData(c) => {
+            let (rows, n) = (u(c.c_in * c.kernel), u(c.len_out));
+            T::with_scratch(rows * n, |col| {
+                T::gemm([rows, u(c.c_out), n], b, [1, rows], a, [n, 1], T::zero(), col, n);
+                fold_add(c, col, out);
+            });
+        }
         TensorOp::PoolPick(p) => pool_argmax(p, a, |src, dst| out[dst] = b[src]),
         TensorOp::PoolScatter(p) => pool_argmax(p, a, |src, dst| out[src] = out[src] + b[dst]),
         TensorOp::PoolAvg(p) => {
@@ -136,6 +221,8 @@ fn axpy<T: Float>(alpha: T, x: &[T], y: &mut [T]) {
     }
 }
 
+/// Index of weight `(o, c, j)` in the row-major `c_out × c_in × kernel` array.
+#[cfg(test)]
 fn weight_index(c: Conv, o: usize, ch: usize, j: usize) -> usize {
     (o * c.c_in as usize + ch) * c.kernel as usize + j
 }
@@ -151,16 +238,46 @@ struct Run {
     stride: usize,
 }
 
-/// Calls `row(o, c, j, run)` for every tap `(o, c, j)` with a non-empty
-/// [`Run`], in the order `o`, `c`, `j`: every output element sums its
-/// terms in that order, as a loop over all taps would.
-fn conv_rows(c: Conv, mut row: impl FnMut(usize, usize, usize, Run)) {
-    let u = |x: u32| x as usize;
-    for o in 0..u(c.c_out) {
-        for ch in 0..u(c.c_in) {
-            for j in 0..u(c.kernel) {
-                if let Some(run) = tap_run(c, j) {
-                    row(o, ch, j, run);
+/// Unfolds (im2col) input `x` (`c_in × len_in`) into `col`, row
+/// `c · kernel + j` of which holds, for every output position `t`, the
+/// input sample tap `j` of channel `c` multiplies there (0 in the padding).
+fn unfold<T: Float>(c: Conv, x: &[T], col: &mut [T]) {
+    let (k, n, len_in) = (c.kernel as usize, c.len_out as usize, c.len_in as usize);
+    for ch in 0..c.c_in as usize {
+        for j in 0..k {
+            let row = &mut col[(ch * k + j) * n..][..n];
+            let Some(r) = tap_run(c, j) else {
+                row.fill(T::zero());
+                continue;
+            };
+            row[..r.t0].fill(T::zero());
+            row[r.t1..].fill(T::zero());
+            let src = &x[ch * len_in..][r.start..];
+            if r.stride == 1 {
+                row[r.t0..r.t1].copy_from_slice(&src[..r.t1 - r.t0]);
+            } else {
+                for (d, s) in row[r.t0..r.t1].iter_mut().zip(src.iter().step_by(r.stride)) {
+                    *d = *s;
+                }
+            }
+        }
+    }
+}
+
+/// The transpose of [`unfold`]: adds every element of `col` to the input
+/// sample it was read from.
+fn fold_add<T: Float>(c: Conv, col: &[T], out: &mut [T]) {
+    let (k, n, len_in) = (c.kernel as usize, c.len_out as usize, c.len_in as usize);
+    for ch in 0..c.c_in as usize {
+        for j in 0..k {
+            let Some(r) = tap_run(c, j) else { continue };
+            let src = &col[(ch * k + j) * n..][r.t0..r.t1];
+            let dst = &mut out[ch * len_in..][r.start..];
+            if r.stride == 1 {
+                axpy(T::one(), src, &mut dst[..src.len()]);
+            } else {
+                for (d, s) in dst.iter_mut().step_by(r.stride).zip(src) {
+                    *d = *d + *s;
                 }
             }
         }
@@ -198,13 +315,14 @@ fn pool_argmax<T: Float>(p: Pool, x: &[T], mut f: impl FnMut(usize, usize)) {
     for ch in 0..u(p.channels) {
         for o in 0..u(p.len_out) {
             let start = ch * u(p.len_in) + o * u(p.stride);
-            let mut best = start;
-            for src in start + 1..start + u(p.window) {
-                if x[src] > x[best] || x[best].is_nan() {
-                    best = src;
+            let window = &x[start..start + u(p.window)];
+            let (mut best, mut top) = (0, window[0]);
+            for (w, v) in window.iter().enumerate().skip(1) {
+                if *v > top || top.is_nan() {
+                    (best, top) = (w, *v);
                 }
             }
-            f(best, ch * u(p.len_out) + o);
+            f(start + best, ch * u(p.len_out) + o);
         }
     }
 }

@@ -173,6 +173,7 @@ impl Scene {
             scene: self,
             params: f.params.iter().map(|p| p.default).collect(),
             inputs: f.inputs.iter().map(|i| i.default.clone()).collect(),
+            stale: vec![false; f.inputs.len()],
             scratch: Vec::new(),
             allocated_for: None,
             filled_for: None,
@@ -293,9 +294,11 @@ pub struct Run<'s> {
     scratch: Vec<(bool, Buffer)>,
     /// Which kernel's layout `scratch` was allocated for (forward or gradient).
     allocated_for: Option<*const Kernel>,
-    /// Which kernel's input buffers hold the bound inputs, or `None` when
-    /// inputs changed since: input buffers are refilled only then.
+    /// Which kernel's buffers hold the tables and the bound inputs (but
+    /// those marked `stale`), or `None`: buffers are refilled only then.
     filled_for: Option<*const Kernel>,
+    /// Per input, whether it was bound since its buffer was last filled.
+    stale: Vec<bool>,
     scalars: Vec<f64>,
 }
 
@@ -318,16 +321,17 @@ impl<'s> Run<'s> {
 
     /// Binds a real input (in its declared unit).
     pub fn input_real(&mut self, name: &str, data: &[f64]) -> Result<&mut Self, Error> {
-        let c: Vec<C64> = data.iter().map(|x| C64::new(*x, 0.0)).collect();
-        self.bind_input(name, c, false)
+        self.bind_input(name, data.len(), false, |k| C64::new(data[k], 0.0))
     }
 
     /// Binds a complex input (in its declared unit).
     pub fn input_complex(&mut self, name: &str, data: &[C64]) -> Result<&mut Self, Error> {
-        self.bind_input(name, data.to_vec(), true)
+        self.bind_input(name, data.len(), true, |k| data[k])
     }
 
-    fn bind_input(&mut self, name: &str, data: Vec<C64>, complex: bool) -> Result<&mut Self, Error> {
+    /// Validates and stores the `len` values `value(k)`, reusing the
+    /// input's previous storage (a run binds new data per example).
+    fn bind_input(&mut self, name: &str, len: usize, complex: bool, value: impl Fn(usize) -> C64) -> Result<&mut Self, Error> {
         let f = self.func();
         let i =
             f.inputs.iter().position(|p| p.name == name).ok_or_else(|| unknown("input", name, f.inputs.iter().map(|p| p.name.as_str())))?;
@@ -336,18 +340,23 @@ impl<'s> Run<'s> {
             return Err(Error::Bind(format!("input `{name}` is real, but complex data was given")));
         }
         let want = f.len_of(info.ty.shape);
-        if data.len() != want {
+        if len != want {
             let grid = match info.ty.shape {
                 Shape::Grid(g) => format!(" (grid `{}`)", f.grids[g.0 as usize].name),
                 Shape::Scalar => " (a scalar)".into(),
             };
-            return Err(Error::Bind(format!("input `{name}` needs {want} values{grid}, but {} were given", data.len())));
+            return Err(Error::Bind(format!("input `{name}` needs {want} values{grid}, but {len} were given")));
         }
-        if let Some(k) = data.iter().position(|z| !z.re.is_finite() || !z.im.is_finite()) {
-            return Err(Error::Bind(format!("input `{name}` has a non-finite value ({}) at index {k}", data[k])));
+        if let Some(k) = (0..len).find(|k| {
+            let z = value(*k);
+            !z.re.is_finite() || !z.im.is_finite()
+        }) {
+            return Err(Error::Bind(format!("input `{name}` has a non-finite value ({}) at index {k}", value(k))));
         }
-        self.inputs[i] = Some(data.into_iter().map(|z| z * info.scale).collect());
-        self.filled_for = None;
+        let stored = self.inputs[i].get_or_insert_with(Vec::new);
+        stored.clear();
+        stored.extend((0..len).map(|k| value(k) * info.scale));
+        self.stale[i] = true;
         Ok(self)
     }
 
@@ -379,7 +388,8 @@ impl<'s> Run<'s> {
         }
         // (Re)allocate buffers for this kernel's layout.
         let floats = |b: &codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
-        if self.filled_for != Some(kernel as *const Kernel) {
+        let refill_all = self.filled_for != Some(kernel as *const Kernel);
+        if refill_all || self.stale.iter().any(|s| *s) {
             if self.allocated_for != Some(kernel as *const Kernel) {
                 self.scratch = layout
                     .buffers
@@ -390,7 +400,7 @@ impl<'s> Run<'s> {
             }
             for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
                 match info.kind {
-                    BufferKind::Input(i) => {
+                    BufferKind::Input(i) if refill_all || self.stale[i] => {
                         let data = self.inputs[i].as_ref().ok_or_else(|| {
                             Error::Bind(format!(
                                 "input `{}` is not bound and has no default; bind it (e.g. `--input {}=FILE.npy`)",
@@ -399,13 +409,14 @@ impl<'s> Run<'s> {
                         })?;
                         fill(buf, data, info.complex);
                     }
-                    BufferKind::Table(k) => {
+                    BufferKind::Table(k) if refill_all => {
                         let data: Vec<C64> = func.tables[k].data.iter().map(|x| C64::new(*x, 0.0)).collect();
                         fill(buf, &data, false);
                     }
-                    BufferKind::Scratch | BufferKind::Output(_) | BufferKind::InputGrad(_) => {}
+                    _ => {}
                 }
             }
+            self.stale.iter_mut().for_each(|s| *s = false);
             self.filled_for = Some(kernel as *const Kernel);
         }
         self.scalars.clear();
