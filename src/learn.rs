@@ -11,7 +11,6 @@ use gwml::runtime::synth::{bursts, glitches, BurstOptions, GlitchOptions, GLITCH
 use gwml::runtime::train::{EpochReport, TrainOptions, Trainer};
 use gwml::{Model, Value};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
@@ -180,10 +179,8 @@ pub fn predict(a: PredictArgs) -> Result<(), String> {
             data.extend(values);
         }
     }
-    for (name, path, data, width) in outputs {
-        let mut arrays = BTreeMap::new();
-        arrays.insert(name.clone(), Array::new(vec![n, width], data).map_err(render)?);
-        dataset::write_npy(path, &arrays[&name]).map_err(render)?;
+    for (_, path, data, width) in outputs {
+        dataset::write_npy(path, &Array::new(vec![n, width], data).map_err(render)?).map_err(render)?;
         println!("wrote {} ({n} × {width})", path.display());
     }
     Ok(())

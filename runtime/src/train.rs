@@ -464,11 +464,10 @@ impl<'d> Examples<'d> {
         let mut sources = Vec::new();
         for input in func.inputs.iter().filter(|i| i.role == InputRole::Data) {
             let want = func.len_of(input.ty.shape);
-            let Ok(a) = data.get(&input.name) else {
-                if input.default.is_some() {
-                    continue;
-                }
-                return Err(data.get(&input.name).err().unwrap_or_else(|| Error::Bind(format!("no data for input `{}`", input.name))));
+            let a = match data.get(&input.name) {
+                Ok(a) => a,
+                Err(_) if input.default.is_some() => continue,
+                Err(e) => return Err(e),
             };
             let row = a.row_len();
             let source = if row == want {
