@@ -1,6 +1,7 @@
 //! The `gwml` command-line tool.
 
 mod commands;
+mod experiment;
 mod learn;
 mod plot;
 mod repl;
