@@ -119,14 +119,15 @@ pub struct Thresholds {
     pub koi_lo: f64,
     /// Koi Fish band, upper edge (Hz).
     pub koi_hi: f64,
-    /// Head score above which a short signal in the Koi Fish band is a Koi Fish.
+    /// Head score, as a fraction of the peak SNR, above which a short signal
+    /// in the Koi Fish band is a Koi Fish (the head is 10-30 % of the amplitude).
     pub head: f64,
 }
 
 impl Default for Thresholds {
     /// Values from the class descriptions and the noise statistics, before tuning.
     fn default() -> Self {
-        Thresholds { detect: 6.0, ext: 5.0, ext_f: 350.0, chirp_margin: 1.05, whistle_f: 300.0, koi_lo: 105.0, koi_hi: 170.0, head: 1.0 }
+        Thresholds { detect: 6.0, ext: 5.0, ext_f: 350.0, chirp_margin: 1.05, whistle_f: 300.0, koi_lo: 105.0, koi_hi: 170.0, head: 0.05 }
     }
 }
 
@@ -144,7 +145,7 @@ impl Thresholds {
             SCRATCHY
         } else if f.f_sg >= self.whistle_f {
             WHISTLE
-        } else if f.f_sg >= self.koi_lo && f.f_sg <= self.koi_hi && f.head >= self.head {
+        } else if f.f_sg >= self.koi_lo && f.f_sg <= self.koi_hi && f.head >= self.head * f.rho_sg {
             KOI
         } else {
             BLIP
@@ -377,7 +378,7 @@ impl RuleClassifier {
             format!("Scratchy: extended excess power z ≥ {:.2} centred below {:.0} Hz", t.ext, t.ext_f),
             format!("Whistle: otherwise, loudest sine-Gaussian at ≥ {:.0} Hz", t.whistle_f),
             format!(
-                "Koi Fish: otherwise, loudest sine-Gaussian at {:.0}–{:.0} Hz with a 20–50 Hz head score (SNR before − after the peak) ≥ {:.2}",
+                "Koi Fish: otherwise, loudest sine-Gaussian at {:.0}–{:.0} Hz with a 20–50 Hz head score (SNR before − after the peak) ≥ {:.3} × its peak SNR",
                 t.koi_lo, t.koi_hi, t.head
             ),
             "Blip: everything else (a short burst below the Whistle frequency)".to_string(),
@@ -434,7 +435,7 @@ fn tune_thresholds(features: &[Features], labels: &[usize], start: Thresholds) -
         (|t| &mut t.whistle_f, grid(200.0, 500.0, 13)),
         (|t| &mut t.koi_lo, grid(80.0, 130.0, 11)),
         (|t| &mut t.koi_hi, grid(150.0, 250.0, 11)),
-        (|t| &mut t.head, grid(-4.0, 4.0, 33)),
+        (|t| &mut t.head, grid(-0.2, 0.3, 51)),
     ];
     let mut best = start;
     let mut best_score = score(&best);
@@ -497,6 +498,112 @@ mod tests {
         let x = d.arrays.remove("x").unwrap();
         let labels = d.arrays["label"].data.iter().map(|l| *l as usize).collect();
         (x, labels)
+    }
+
+    /// The classifier tuned on seed 100 (300 rows), shared by the tests.
+    fn tuned() -> &'static RuleClassifier {
+        static TUNED: std::sync::OnceLock<RuleClassifier> = std::sync::OnceLock::new();
+        TUNED.get_or_init(|| {
+            let (x, labels) = data(300, 100, (8.0, 30.0));
+            let mut c = RuleClassifier::new().unwrap();
+            c.tune(&x, &labels).unwrap();
+            c
+        })
+    }
+
+    fn recall(pred: &[usize], labels: &[usize], class: usize) -> f64 {
+        let of_class: Vec<usize> = (0..labels.len()).filter(|i| labels[*i] == class).collect();
+        of_class.iter().filter(|i| pred[**i] == class).count() as f64 / of_class.len() as f64
+    }
+
+    /// On held-out data (seed 101, 300 rows), noise is left alone and the
+    /// glitch classes are found. Measured on these seeds: None recall 0.98,
+    /// macro recall over the five signal classes 0.87 (0.84-0.87 on 1,200
+    /// rows of other seeds).
+    #[test]
+    fn tuned_rules_work_on_held_out_data() {
+        let c = tuned();
+        let (x, labels) = data(300, 101, (8.0, 30.0));
+        let pred = c.classify(&x).unwrap();
+        let none = recall(&pred, &labels, NONE);
+        assert!(none >= 0.9, "None recall {none}\n{}", c.describe());
+        let macro_recall = (1..GLITCH_CLASSES.len()).map(|k| recall(&pred, &labels, k)).sum::<f64>() / 5.0;
+        assert!(macro_recall >= 0.78, "macro recall over glitch classes {macro_recall}\n{}", c.describe());
+        // Chirps are the easiest class: a matched template.
+        let chirp = recall(&pred, &labels, CHIRP);
+        assert!(chirp >= 0.9, "Chirp recall {chirp}");
+    }
+
+    /// Loud examples (SNR 40). Measured (seed 102, 180 rows, thresholds
+    /// tuned on seed 100): recall None 1.00, Blip 0.77, Koi Fish 0.89,
+    /// Whistle 1.00, Scratchy 0.82, Chirp 1.00. Blips lose most: the
+    /// thresholds tuned at SNR 8-30 call nearly every short burst at
+    /// 110-170 Hz a Koi Fish (there a Koi Fish's head is mostly too faint to
+    /// see, and Koi Fish outnumber Blips in that band about 4 to 1), and
+    /// ~27 % of Blips are drawn in that band. The floors are those values
+    /// less a margin.
+    #[test]
+    fn loud_examples_of_every_class_are_recognised() {
+        let c = tuned();
+        let (x, labels) = data(180, 102, (40.0, 40.0));
+        let pred = c.classify(&x).unwrap();
+        let recalls: Vec<f64> = (0..GLITCH_CLASSES.len()).map(|k| recall(&pred, &labels, k)).collect();
+        eprintln!("recall at SNR 40: {recalls:?}\n{}", c.describe());
+        for (k, r) in recalls.iter().enumerate() {
+            let floor = [0.95, 0.7, 0.8, 0.95, 0.75, 0.95][k];
+            assert!(*r >= floor, "{}: recall {r} at SNR 40 (all: {recalls:?})\n{}", GLITCH_CLASSES[k], c.describe());
+        }
+    }
+
+    #[test]
+    fn the_rules_read_the_features_as_described() {
+        let t = Thresholds::default();
+        let quiet = Features { rho_sg: 4.5, f_sg: 600.0, q_sg: 3.0, rho_chirp: 4.0, ext: 1.0, ext_f: 500.0, head: 0.0 };
+        assert_eq!(t.decide(&quiet), NONE);
+        let chirp = Features { rho_sg: 10.0, rho_chirp: 13.0, f_sg: 40.0, ..quiet.clone() };
+        assert_eq!(t.decide(&chirp), CHIRP);
+        let long_high = Features { rho_sg: 5.0, ext: 12.0, ext_f: 700.0, ..quiet.clone() };
+        assert_eq!(t.decide(&long_high), WHISTLE);
+        let long_low = Features { ext_f: 120.0, ..long_high.clone() };
+        assert_eq!(t.decide(&long_low), SCRATCHY);
+        let blip = Features { rho_sg: 15.0, f_sg: 80.0, ..quiet.clone() };
+        assert_eq!(t.decide(&blip), BLIP);
+        let koi = Features { f_sg: 140.0, head: 3.0, ..blip.clone() };
+        assert_eq!(t.decide(&koi), KOI);
+        assert_eq!(t.decide(&Features { head: -1.0, ..koi }), BLIP);
+        assert_eq!(t.decide(&Features { f_sg: 800.0, ..blip }), WHISTLE);
+    }
+
+    #[test]
+    fn template_names_carry_their_parameters() {
+        let Kind::Sg { f0, q, tau } = parse_template("sg_f114_q8").unwrap() else { panic!("not a sine-Gaussian") };
+        assert_eq!((f0, q), (114.0, 8.0));
+        assert!((tau - 8.0 / (std::f64::consts::SQRT_2 * std::f64::consts::PI * 114.0)).abs() < 1e-15);
+        assert!(matches!(parse_template("chirp_mc26"), Ok(Kind::Chirp)));
+        for bad in ["sg_f114", "sg_fx_q3", "chirp_mcx", "blip"] {
+            assert!(parse_template(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn scores_count_precision_and_recall() {
+        let (per, f1) = scores(&[0, 0, 1, 2, 2, 2], &[0, 1, 1, 2, 2, 0]);
+        assert_eq!(per[0], (0.5, 0.5));
+        assert_eq!(per[1], (1.0, 0.5));
+        assert_eq!(per[2], (2.0 / 3.0, 1.0));
+        assert_eq!(per[3], (0.0, 0.0));
+        let f1_2 = 2.0 * (2.0 / 3.0) / (2.0 / 3.0 + 1.0);
+        assert!((f1 - (0.5 + 2.0 / 3.0 + f1_2) / 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_data_is_an_error() {
+        let c = tuned();
+        assert!(c.classify(&Array::new(vec![2, 100], vec![0.0; 200]).unwrap()).is_err());
+        let mut c2 = RuleClassifier::new().unwrap();
+        let x = Array::new(vec![1, SAMPLES], vec![0.0; SAMPLES]).unwrap();
+        assert!(c2.tune(&x, &[7]).is_err());
+        assert!(c2.tune(&x, &[0, 1]).is_err());
     }
 
     /// The bank's matched filter is `std::detector::snr_series`, rewritten.
@@ -580,7 +687,12 @@ mod tests {
         eprintln!("features: {:.3} ms per row", t.elapsed().as_secs_f64() * 1e3 / n as f64);
         for (class, name) in GLITCH_CLASSES.iter().enumerate() {
             eprintln!("== {name}");
-            for (f, _) in feats.iter().zip(&labels).filter(|(_, l)| **l == class).take(std::env::var("SHOW").ok().and_then(|s| s.parse().ok()).unwrap_or(12)) {
+            for (f, _) in feats
+                .iter()
+                .zip(&labels)
+                .filter(|(_, l)| **l == class)
+                .take(std::env::var("SHOW").ok().and_then(|s| s.parse().ok()).unwrap_or(12))
+            {
                 eprintln!(
                     "  rho_sg {:5.1} f {:6.0} q {:2} chirp {:5.1} ext {:6.1} ext_f {:5.0} head {:5.2}",
                     f.rho_sg, f.f_sg, f.q_sg, f.rho_chirp, f.ext, f.ext_f, f.head
