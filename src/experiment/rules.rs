@@ -613,7 +613,7 @@ mod tests {
         let scene = model.scene(Some("check")).unwrap();
         let (x, labels) = data(12, 5, (20.0, 20.0));
         let mut run = scene.bind();
-        for i in 0..x.rows() {
+        for (i, label) in labels.iter().enumerate() {
             run.input_real("x", x.row(i)).unwrap();
             let out = run.forward().unwrap();
             for kind in ["sg", "chirp"] {
@@ -623,7 +623,7 @@ mod tests {
                 };
                 let (ours, std) = (get(format!("{kind}_ours")), get(format!("{kind}_std")));
                 let peak = std.iter().fold(0.0f64, |a, b| a.max(*b));
-                assert!(peak > 2.0, "class {} row {i}: {kind} peak {peak}", labels[i]);
+                assert!(peak > 2.0, "class {label} row {i}: {kind} peak {peak}");
                 for (a, b) in ours.iter().zip(&std) {
                     assert!((a - b).abs() < 1e-9 * peak, "{kind}: {a} vs {b}");
                 }
