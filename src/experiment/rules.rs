@@ -632,14 +632,15 @@ mod tests {
     }
 
     #[test]
-    #[ignore = "evaluation: tunes on seed 7 and prints per-class scores on seed 8 (N rows each)"]
+    #[ignore = "evaluation: tunes on seed 7 and prints per-class scores on seed SEED (default 8), N rows each (default 1200)"]
     fn evaluate() {
         let n: usize = std::env::var("N").ok().and_then(|s| s.parse().ok()).unwrap_or(1200);
         let (x, labels) = data(n, 7, (8.0, 30.0));
         let mut c = RuleClassifier::new().unwrap();
         c.tune(&x, &labels).unwrap();
         eprintln!("{}\n{:?}", c.describe(), c.thresholds);
-        let (x, labels) = data(n, 8, (8.0, 30.0));
+        let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(8);
+        let (x, labels) = data(n, seed, (8.0, 30.0));
         let t = std::time::Instant::now();
         let pred = c.classify(&x).unwrap();
         eprintln!("classify: {:.3} ms per row (all threads)", t.elapsed().as_secs_f64() * 1e3 / n as f64);
