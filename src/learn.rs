@@ -190,6 +190,9 @@ pub fn predict(a: PredictArgs) -> Result<(), String> {
 pub fn data(a: DataArgs) -> Result<(), String> {
     match a.kind {
         DataKind::Bursts => {
+            if a.psd_knee != 0.0 {
+                return Err("error: --psd-knee applies to glitch data only".into());
+            }
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("6..15"))?;
             let ds = bursts(&BurstOptions { n: a.n, seed: a.seed, snr: (lo, hi), ..Default::default() }).map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;
@@ -203,7 +206,7 @@ pub fn data(a: DataArgs) -> Result<(), String> {
         }
         DataKind::Glitch => {
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("8..30"))?;
-            let ds = glitches(&GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi) }).map_err(render)?;
+            let ds = glitches(&GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), psd_knee: a.psd_knee }).map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;
             let counts: Vec<String> = GLITCH_CLASSES
                 .iter()

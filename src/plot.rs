@@ -115,3 +115,67 @@ pub fn scatter_loglog(
     root.present().map_err(|e| err(&e))?;
     Ok(())
 }
+
+/// Draws a confusion matrix (`counts[truth][predicted]`) as a grid of cells
+/// shaded by the fraction of each true class, with the counts written in,
+/// into a PNG at `path`.
+pub fn confusion_plot(path: &Path, title: &str, labels: &[&str], counts: &[Vec<usize>]) -> Result<(), String> {
+    register_font();
+    let n = labels.len();
+    if n == 0 || counts.len() != n || counts.iter().any(|r| r.len() != n) {
+        return Err(format!("cannot draw {}: a confusion matrix needs {n} × {n} counts", path.display()));
+    }
+    let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
+    let root = BitMapBackend::new(path, (760, 640)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(16)
+        .x_label_area_size(48)
+        .y_label_area_size(96)
+        .build_cartesian_2d((0..n).into_segmented(), (0..n).into_segmented())
+        .map_err(|e| err(&e))?;
+    let name = |v: &SegmentValue<usize>| match v {
+        SegmentValue::CenterOf(i) | SegmentValue::Exact(i) => labels.get(*i).map_or(String::new(), |s| s.to_string()),
+        SegmentValue::Last => String::new(),
+    };
+    // Rows run top to bottom in label order: the y axis is flipped.
+    let row_name = |v: &SegmentValue<usize>| match v {
+        SegmentValue::CenterOf(i) | SegmentValue::Exact(i) if *i < n => labels[n - 1 - i].to_string(),
+        _ => String::new(),
+    };
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("predicted")
+        .y_desc("true class")
+        .x_label_formatter(&name)
+        .y_label_formatter(&row_name)
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(|e| err(&e))?;
+    for (t, row) in counts.iter().enumerate() {
+        let total = row.iter().sum::<usize>().max(1) as f64;
+        for (p, &k) in row.iter().enumerate() {
+            let share = k as f64 / total;
+            let y = n - 1 - t;
+            let shade = RGBColor((255.0 * (1.0 - 0.8 * share)) as u8, (255.0 * (1.0 - 0.6 * share)) as u8, 255);
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(SegmentValue::Exact(p), SegmentValue::Exact(y)), (SegmentValue::Exact(p + 1), SegmentValue::Exact(y + 1))],
+                    shade.filled(),
+                )))
+                .map_err(|e| err(&e))?;
+            let ink = if share > 0.6 { WHITE } else { BLACK };
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    k.to_string(),
+                    (SegmentValue::CenterOf(p), SegmentValue::CenterOf(y)),
+                    ("sans-serif", 16).into_font().color(&ink),
+                )))
+                .map_err(|e| err(&e))?;
+        }
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}

@@ -196,6 +196,27 @@ impl Dataset {
         Ok(a.rows())
     }
 
+    /// The first `n` examples (all of them when there are fewer): every
+    /// array cut to its first `n` rows (0-D arrays are kept whole).
+    pub fn head(&self, n: usize) -> Dataset {
+        let arrays = self
+            .arrays
+            .iter()
+            .map(|(name, a)| {
+                if a.shape.is_empty() {
+                    return (name.clone(), a.clone());
+                }
+                let rows = a.rows().min(n);
+                let mut shape = a.shape.clone();
+                if let Some(first) = shape.first_mut() {
+                    *first = rows;
+                }
+                (name.clone(), Array { shape, data: a.data[..rows * a.row_len()].to_vec() })
+            })
+            .collect();
+        Dataset { arrays }
+    }
+
     /// The array called `name`; errors ([`Error::Bind`]) listing the names there are.
     pub fn get(&self, name: &str) -> Result<&Array, Error> {
         self.arrays.get(name).ok_or_else(|| {
@@ -285,6 +306,17 @@ mod tests {
                 ("snr".to_string(), Array::new(vec![4, 1, 1], vec![8.0, 12.5, f64::MAX, 1e-300]).unwrap()),
             ]),
         }
+    }
+
+    #[test]
+    fn head_keeps_the_first_rows_of_every_array() {
+        let ds = sample();
+        let two = ds.head(2);
+        assert_eq!(two.examples().unwrap(), 2);
+        assert_eq!(two.arrays["x"].data, ds.arrays["x"].data[..6]);
+        assert_eq!(two.arrays["label"].data, vec![0.0, 1.0]);
+        assert_eq!(two.arrays["snr"].shape, vec![2, 1, 1]);
+        assert_eq!(ds.head(10), ds);
     }
 
     #[test]

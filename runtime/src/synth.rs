@@ -96,7 +96,7 @@ pub const GLITCH_CLASSES: &[&str] = &["None", "Blip", "Koi Fish", "Whistle", "Sc
 /// The scene that draws one whitened signal of any class (`class` selects).
 const GLITCH_SCENE: &str = "use std::glitch::{blip, koi_fish, whistle, scratchy}
 use std::taylorf2::{tf2_strain_td}
-use std::detector::{whiten}
+use std::detector::{whiten, band}
 use std::psd::{psd_aligo_zerodet_highpower}
 scene glitch {
     grid t = times(rate: 4096 Hz, duration: 1 s)
@@ -124,6 +124,13 @@ scene glitch {
             tf2_strain_td(t, f, 30 Hz, mc, mass_ratio, 0.0, 0.0, 400 Mpc, tc, phi) / 1e-21))))
     output w = whiten(h, psd_aligo_zerodet_highpower(max(f, 10 Hz)) / 1e-42 s, t, f, 20 Hz, 2000 Hz)
 }
+scene coloured_noise {
+    grid t = times(rate: 4096 Hz, duration: 1 s)
+    grid f = spectrum(t)
+    input n: real[t] = 0.0
+    param knee: Hz = 60.0
+    output noise = irfft(rfft(n, f) * sqrt(1.0 + band(f, 20 Hz, 2000 Hz) * (knee / max(f, 1 Hz)) ^ 2), t)
+}
 ";
 
 /// Ranges of the glitch experiment's data.
@@ -134,13 +141,20 @@ pub struct GlitchOptions {
     /// Seed: the same seed gives the same dataset; use different seeds for
     /// training, validation and test sets.
     pub seed: u64,
-    /// Optimal SNR range of every signal.
+    /// Optimal SNR range of every signal (with respect to the modelled PSD).
     pub snr: (f64, f64),
+    /// A shifted PSD for generalisation tests: when positive, the noise's
+    /// true PSD is the modelled aLIGO PSD times `1 + (knee / f)²` over the
+    /// whitening band (20 Hz to 2 kHz), excess low-frequency noise the
+    /// whitening does not know about: at `knee` the noise power is doubled,
+    /// at 20 Hz it is `1 + (knee / 20 Hz)²` times the model's. Zero: the
+    /// modelled PSD.
+    pub psd_knee: f64,
 }
 
 impl Default for GlitchOptions {
     fn default() -> Self {
-        GlitchOptions { n: 1000, seed: 1, snr: (8.0, 30.0) }
+        GlitchOptions { n: 1000, seed: 1, snr: (8.0, 30.0), psd_knee: 0.0 }
     }
 }
 
@@ -157,15 +171,28 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
     if !(o.snr.0 > 0.0 && o.snr.1 >= o.snr.0 && o.snr.1.is_finite()) {
         return Err(Error::Bind(format!("SNR range {}..{} must be positive and increasing", o.snr.0, o.snr.1)));
     }
+    if o.psd_knee.is_nan() || o.psd_knee < 0.0 || o.psd_knee.is_infinite() {
+        return Err(Error::Bind(format!("the PSD knee {} Hz must be zero or positive", o.psd_knee)));
+    }
     let model = crate::Model::from_source("glitch-data.gw", GLITCH_SCENE)?;
-    let scene = model.scene(None)?;
+    let scene = model.scene(Some("glitch"))?;
     let mut run = scene.bind();
+    let noise_scene = model.scene(Some("coloured_noise"))?;
+    let mut noise_run = noise_scene.bind();
+    noise_run.param("knee", o.psd_knee)?;
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(o.seed);
     let samples = 4096;
     let (mut x, mut labels) = (Vec::with_capacity(o.n * samples), Vec::with_capacity(o.n));
     for _ in 0..o.n {
         let class = rng.random_range(0..GLITCH_CLASSES.len());
         let mut row: Vec<f64> = (0..samples).map(|_| StandardNormal.sample(&mut rng)).collect();
+        if o.psd_knee > 0.0 {
+            noise_run.input_real("n", &row)?;
+            match noise_run.forward()?.value("noise")? {
+                Value::RealArray(coloured) => row.clone_from(coloured),
+                _ => return Err(Error::Bind("the coloured-noise scene's output is not a real array".into())),
+            }
+        }
         if class > 0 {
             let mut u = |lo: f64, hi: f64| rng.random_range(lo..=hi);
             let f_min = u(300.0, 900.0);
@@ -260,7 +287,7 @@ mod glitch_tests {
 
     #[test]
     fn glitch_data_is_reproducible_covers_every_class_and_has_the_drawn_snr() {
-        let o = GlitchOptions { n: 120, seed: 3, snr: (60.0, 60.0) };
+        let o = GlitchOptions { n: 120, seed: 3, snr: (60.0, 60.0), psd_knee: 0.0 };
         let a = glitches(&o).unwrap();
         assert_eq!(a, glitches(&o).unwrap());
         let labels = &a.arrays["label"].data;
@@ -281,5 +308,26 @@ mod glitch_tests {
                 assert!((excess - 3600.0).abs() < 600.0, "class {label} row {i}: excess {excess}");
             }
         }
+    }
+
+    #[test]
+    fn a_shifted_psd_adds_the_stated_low_frequency_noise() {
+        // Noise only: the same white draws, coloured by 1 + (knee/f)² over
+        // 20 Hz - 2 kHz. White noise of unit variance spreads its power
+        // evenly over the 2048 Hz of bins, so the expected power ratio is
+        // 1 + (1/2048 Hz) ∫_{20}^{2000} (knee/f)² df
+        //   = 1 + knee² (1/20 - 1/2000) / 2048.
+        let knee = 60.0;
+        let plain = glitches(&GlitchOptions { n: 200, seed: 9, snr: (8.0, 30.0), psd_knee: 0.0 }).unwrap();
+        let shifted = glitches(&GlitchOptions { n: 200, seed: 9, snr: (8.0, 30.0), psd_knee: knee }).unwrap();
+        let labels = &plain.arrays["label"].data;
+        assert_eq!(labels, &shifted.arrays["label"].data);
+        let power = |d: &Dataset| -> f64 {
+            (0..200).filter(|i| labels[*i] == 0.0).map(|i| d.arrays["x"].row(i).iter().map(|v| v * v).sum::<f64>()).sum()
+        };
+        let ratio = power(&shifted) / power(&plain);
+        let expected = 1.0 + knee * knee * (1.0 / 20.0 - 1.0 / 2000.0) / 2048.0;
+        assert!((ratio / expected - 1.0).abs() < 0.03, "power ratio {ratio}, expected {expected}");
+        assert!(glitches(&GlitchOptions { psd_knee: -1.0, ..Default::default() }).is_err());
     }
 }

@@ -277,13 +277,42 @@ impl<'s> Trainer<'s> {
         Ok(total)
     }
 
+    /// The predicted class of every example of `data`, in order: the index
+    /// of the largest element of the logits output (forward only, over all
+    /// threads).
+    pub fn predict_classes(&self, data: &Dataset) -> Result<Vec<usize>, Error> {
+        let ex = Examples::new(self.scene.ir(), data, &self.opts)?;
+        let all: Vec<usize> = (0..ex.len).collect();
+        let parts = self.in_chunks(&all, |chunk| {
+            let mut run = self.scene.bind();
+            self.bind_values(&mut run)?;
+            let mut classes = Vec::with_capacity(chunk.len());
+            for &i in chunk {
+                ex.bind(&mut run, i)?;
+                let out = run.forward()?;
+                match out.value(&self.opts.logits)? {
+                    Value::RealArray(z) => classes.push(argmax(z)),
+                    _ => return Err(Error::Bind(format!("output `{}` is not a real array of logits", self.opts.logits))),
+                }
+            }
+            Ok(classes)
+        })?;
+        Ok(parts.into_iter().flatten().collect())
+    }
+
     /// Runs `indices` in one contiguous chunk per thread; results in chunk order.
     fn run_chunks(&self, ex: &Examples<'_>, indices: &[usize], grad: bool) -> Result<Vec<Partial>, Error> {
+        self.in_chunks(indices, |c| self.run_chunk(ex, c, grad))
+    }
+
+    /// Splits `indices` into one contiguous chunk per thread and maps `f`
+    /// over the chunks in the trainer's pool; results in chunk order.
+    fn in_chunks<R: Send>(&self, indices: &[usize], f: impl Fn(&[usize]) -> Result<R, Error> + Sync) -> Result<Vec<R>, Error> {
         let size = indices.len().div_ceil(self.opts.threads).max(1);
         let chunks: Vec<&[usize]> = indices.chunks(size).collect();
-        let out: Vec<Result<Partial, Error>> = self.pool.install(|| {
+        let out: Vec<Result<R, Error>> = self.pool.install(|| {
             use rayon::prelude::*;
-            chunks.par_iter().map(|c| self.run_chunk(ex, c, grad)).collect()
+            chunks.par_iter().map(|c| f(c)).collect()
         });
         out.into_iter().collect()
     }

@@ -1,4 +1,450 @@
-//! Experiments of the glitch study (issue #7): classifiers of the whitened
-//! glitch segments of `gwml::runtime::synth::glitches`.
+//! `gwml experiment glitch`: the reference experiment of the glitch
+//! pipeline. Three classifiers see the same synthetic data
+//! ([`gwml::runtime::synth::glitches`]: whitened 1 s segments of six
+//! classes) and are scored on the same test sets:
+//!
+//! 1. [`rules::RuleClassifier`]: a fixed matched-filter bank with tuned
+//!    thresholds (`examples/glitch/bank.gw`), no gradient training;
+//! 2. a 1-D CNN on the whitened strain (`examples/glitch/cnn.gw`);
+//! 3. the differentiable model: a trainable template bank feeding a small
+//!    network, trained end to end (`examples/glitch/template_net.gw`).
+//!
+//! Training sets of several sizes (prefixes of one seed's draw) give the
+//! learning curves; validation, test and the two shifted test sets (lower
+//! SNR; excess low-frequency noise the whitening does not model) use
+//! their own seeds, so every split is disjoint by seed. Results go to
+//! Markdown, CSV and PNG files in the output directory.
 
+pub mod metrics;
 pub mod rules;
+
+use crate::commands::render;
+use crate::plot;
+use gwml::runtime::dataset::Dataset;
+use gwml::runtime::optim::{Method, OptimConfig, Schedule};
+use gwml::runtime::synth::{glitches, GlitchOptions, GLITCH_CLASSES};
+use gwml::runtime::train::{TrainOptions, Trainer};
+use gwml::Model;
+use indicatif::{ProgressBar, ProgressStyle};
+use metrics::{csv_table, markdown_table, percent, Confusion};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The CNN of method 2.
+const CNN_SOURCE: &str = include_str!("../../examples/glitch/cnn.gw");
+/// The differentiable model of method 3.
+const TEMPLATE_NET_SOURCE: &str = include_str!("../../examples/glitch/template_net.gw");
+
+/// Classes scored in the macro averages: every class but None.
+const GLITCH_LIKE: [usize; 5] = [1, 2, 3, 4, 5];
+
+/// Seeds of the splits (training sets of every size are prefixes of one draw).
+const TRAIN_SEED: u64 = 1;
+const VAL_SEED: u64 = 2;
+const TEST_SEED: u64 = 3;
+const LOW_SNR_SEED: u64 = 4;
+const SHIFTED_PSD_SEED: u64 = 5;
+
+/// The standard SNR range, and the shifted one of the generalisation check.
+const SNR: (f64, f64) = (8.0, 30.0);
+const LOW_SNR: (f64, f64) = (5.0, 12.0);
+/// Knee of the shifted PSD (see [`GlitchOptions::psd_knee`]).
+const SHIFTED_PSD_KNEE: f64 = 60.0;
+
+/// Options of `gwml experiment glitch`.
+pub struct GlitchExperiment {
+    /// Small sizes, for a run of minutes.
+    pub quick: bool,
+    /// Where the tables and plots go.
+    pub out: PathBuf,
+    /// Worker threads.
+    pub threads: usize,
+}
+
+/// How large a run is.
+struct Plan {
+    /// Training-set sizes of the learning curves, increasing.
+    sizes: Vec<usize>,
+    /// The size whose models fill the main tables and the generalisation check.
+    reference: usize,
+    /// Examples in the validation set and in each test set.
+    val: usize,
+    test: usize,
+    /// Examples the rule thresholds are tuned on.
+    tune: usize,
+    /// Gradient steps per training run, whatever the training-set size
+    /// (epochs are rounded up, between `min_epochs` and `max_epochs`).
+    steps: usize,
+    min_epochs: usize,
+    max_epochs: usize,
+}
+
+impl Plan {
+    fn new(quick: bool) -> Plan {
+        if quick {
+            Plan {
+                sizes: vec![500, 1500, 5000],
+                reference: 5000,
+                val: 600,
+                test: 1200,
+                tune: 1500,
+                steps: 1000,
+                min_epochs: 3,
+                max_epochs: 30,
+            }
+        } else {
+            Plan {
+                sizes: vec![500, 1500, 5000, 15000, 50000],
+                reference: 5000,
+                val: 1200,
+                test: 3000,
+                tune: 5000,
+                steps: 3000,
+                min_epochs: 4,
+                max_epochs: 60,
+            }
+        }
+    }
+
+    fn epochs(&self, n: usize, batch: usize) -> usize {
+        (self.steps * batch).div_ceil(n.max(1)).clamp(self.min_epochs, self.max_epochs)
+    }
+}
+
+/// A trained method's settings.
+struct Learner {
+    /// Short name used in file names.
+    key: &'static str,
+    /// Name in the tables.
+    title: &'static str,
+    source: &'static str,
+    lr: f64,
+    batch: usize,
+}
+
+const LEARNERS: [Learner; 2] = [
+    Learner { key: "cnn", title: "CNN", source: CNN_SOURCE, lr: 3e-3, batch: 32 },
+    Learner { key: "template_net", title: "Differentiable template bank + head", source: TEMPLATE_NET_SOURCE, lr: 3e-3, batch: 32 },
+];
+
+/// The test sets every method is scored on.
+struct TestSets {
+    standard: Dataset,
+    low_snr: Dataset,
+    shifted_psd: Dataset,
+}
+
+/// Names of the test sets, in [`TestSets::all`] order.
+const TEST_SET_NAMES: [&str; 3] = ["standard", "low SNR (5–12)", "shifted PSD (knee 60 Hz)"];
+
+impl TestSets {
+    fn all(&self) -> [&Dataset; 3] {
+        [&self.standard, &self.low_snr, &self.shifted_psd]
+    }
+}
+
+/// One method's predictions on the three test sets, for one training size.
+struct Scored {
+    method: String,
+    key: String,
+    train_examples: usize,
+    /// Confusion on each test set, in [`TestSets::all`] order.
+    confusions: Vec<Confusion>,
+    seconds: f64,
+    /// What the method ended up as (the tuned rules), for the results page.
+    details: Option<String>,
+}
+
+/// Runs the experiment and writes its results.
+pub fn glitch(o: &GlitchExperiment) -> Result<(), String> {
+    run_plan(o, &Plan::new(o.quick))?;
+    println!("{}", std::fs::read_to_string(o.out.join("README.md")).unwrap_or_default());
+    Ok(())
+}
+
+fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
+    let start = Instant::now();
+    std::fs::create_dir_all(&o.out).map_err(|e| format!("error: cannot create {}: {e}", o.out.display()))?;
+    let largest = *plan.sizes.last().expect("at least one size");
+
+    eprintln!("drawing data: {largest} training, {} validation, 3 × {} test examples", plan.val, plan.test);
+    let draw = |n, seed, snr, psd_knee| glitches(&GlitchOptions { n, seed, snr, psd_knee }).map_err(render);
+    let train = draw(largest, TRAIN_SEED, SNR, 0.0)?;
+    let val = draw(plan.val, VAL_SEED, SNR, 0.0)?;
+    let tests = TestSets {
+        standard: draw(plan.test, TEST_SEED, SNR, 0.0)?,
+        low_snr: draw(plan.test, LOW_SNR_SEED, LOW_SNR, 0.0)?,
+        shifted_psd: draw(plan.test, SHIFTED_PSD_SEED, SNR, SHIFTED_PSD_KNEE)?,
+    };
+    let data_seconds = start.elapsed().as_secs_f64();
+    eprintln!("  ({data_seconds:.1} s)");
+
+    let mut scored = Vec::new();
+    scored.push(run_rules(plan, &train, &tests)?);
+    for learner in &LEARNERS {
+        for &n in &plan.sizes {
+            scored.push(run_learner(learner, plan, &train.head(n), &val, &tests, o.threads)?);
+        }
+    }
+    let total = start.elapsed().as_secs_f64();
+    write_results(o, plan, &scored, data_seconds, total)
+}
+
+/// Labels of a dataset as class indices.
+fn labels(d: &Dataset) -> Result<Vec<usize>, String> {
+    Ok(d.get("label").map_err(render)?.data.iter().map(|&l| l as usize).collect())
+}
+
+fn run_rules(plan: &Plan, train: &Dataset, tests: &TestSets) -> Result<Scored, String> {
+    let t0 = Instant::now();
+    eprintln!("rule-based classifier: tuning thresholds on {} examples", plan.tune);
+    let mut rules = rules::RuleClassifier::new()?;
+    let tune = train.head(plan.tune);
+    rules.tune(tune.get("x").map_err(render)?, &labels(&tune)?)?;
+    let mut confusions = Vec::new();
+    for set in tests.all() {
+        let predicted = rules.classify(set.get("x").map_err(render)?)?;
+        confusions.push(Confusion::new(GLITCH_CLASSES.len(), &labels(set)?, &predicted)?);
+    }
+    let seconds = t0.elapsed().as_secs_f64();
+    eprintln!("  macro P/R {} ({seconds:.1} s)", macro_line(&confusions[0]));
+    Ok(Scored {
+        method: "Rule-based filtering".into(),
+        key: "rules".into(),
+        train_examples: 0,
+        confusions,
+        seconds,
+        details: Some(rules.describe()),
+    })
+}
+
+fn run_learner(l: &Learner, plan: &Plan, train: &Dataset, val: &Dataset, tests: &TestSets, threads: usize) -> Result<Scored, String> {
+    let t0 = Instant::now();
+    let n = train.examples().map_err(render)?;
+    let epochs = plan.epochs(n, l.batch);
+    let model = Model::from_source(&format!("examples/glitch/{}.gw", l.key), l.source).map_err(render)?;
+    let scene = model.scene(None).map_err(render)?;
+    let steps_per_epoch = n.div_ceil(l.batch) as u64;
+    let opts = TrainOptions {
+        loss: "loss".into(),
+        logits: "logits".into(),
+        label: "label".into(),
+        epochs,
+        batch: l.batch,
+        optim: OptimConfig {
+            method: Method::adam(),
+            lr: l.lr,
+            schedule: Schedule::Cosine { total: epochs as u64 * steps_per_epoch, min_lr: 0.0 },
+            clip_norm: Some(10.0),
+        },
+        seed: 0,
+        threads,
+        patience: None,
+        checkpoint_dir: None,
+    };
+    let mut trainer = Trainer::new(&scene, opts).map_err(render)?;
+    let bar = ProgressBar::new(epochs as u64 * steps_per_epoch);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} steps, eta {eta}")
+            .map_err(|e| format!("error: {e}"))?
+            .progress_chars("=> "),
+    );
+    bar.set_message(format!("{} on {n}", l.title));
+    let done_epochs = std::cell::Cell::new(0u64);
+    let reports = trainer
+        .fit(
+            train,
+            Some(val),
+            |done, _| bar.set_position(done_epochs.get() * steps_per_epoch + done as u64),
+            |_| done_epochs.set(done_epochs.get() + 1),
+        )
+        .map_err(render)?;
+    bar.finish_and_clear();
+    let params: Vec<String> = scene
+        .ir()
+        .params
+        .iter()
+        .filter_map(|p| trainer.param(&p.name).map(|v| format!("{} = {v:.4} (from {:.4})", p.name, p.default.unwrap_or(f64::NAN))))
+        .collect();
+    let trained_params = (!params.is_empty()).then(|| params.join(", "));
+    let mut confusions = Vec::new();
+    for set in tests.all() {
+        let predicted = trainer.predict_classes(set).map_err(render)?;
+        confusions.push(Confusion::new(GLITCH_CLASSES.len(), &labels(set)?, &predicted)?);
+    }
+    let seconds = t0.elapsed().as_secs_f64();
+    let val_acc = reports.last().and_then(|r| r.val).and_then(|m| m.accuracy).map_or("–".into(), percent);
+    eprintln!(
+        "{} on {n} examples, {epochs} epochs: validation accuracy {val_acc} %, test macro P/R {} ({seconds:.1} s)",
+        l.title,
+        macro_line(&confusions[0])
+    );
+    Ok(Scored { method: l.title.into(), key: l.key.into(), train_examples: n, confusions, seconds, details: trained_params })
+}
+
+fn macro_line(c: &Confusion) -> String {
+    let (p, r) = c.macro_scores(&GLITCH_LIKE);
+    format!("{} / {} %", percent(p), percent(r))
+}
+
+/// The rows of the main table: the rule-based classifier and each learner
+/// at the reference size (and at the largest size, when larger).
+fn headline<'a>(plan: &Plan, scored: &'a [Scored]) -> Vec<&'a Scored> {
+    let largest = *plan.sizes.last().expect("at least one size");
+    scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference || s.train_examples == largest).collect()
+}
+
+fn write_file(dir: &Path, name: &str, text: &str) -> Result<(), String> {
+    let path = dir.join(name);
+    std::fs::write(&path, text).map_err(|e| format!("error: cannot write {}: {e}", path.display()))
+}
+
+fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seconds: f64, total: f64) -> Result<(), String> {
+    let rows_main: Vec<Vec<String>> = headline(plan, scored)
+        .iter()
+        .map(|s| {
+            let (p, r) = s.confusions[0].macro_scores(&GLITCH_LIKE);
+            let n = if s.train_examples == 0 {
+                "0 (tuned on ".to_string() + &plan.tune.to_string() + ")"
+            } else {
+                s.train_examples.to_string()
+            };
+            vec![s.method.clone(), percent(p), percent(r), percent(s.confusions[0].accuracy()), n, format!("{:.0}", s.seconds)]
+        })
+        .collect();
+    let main_header = ["method", "macro precision %", "macro recall %", "accuracy %", "training examples", "seconds"];
+
+    let per_class_header = ["method", "training examples", "class", "precision %", "recall %", "false-positive rate %", "support"];
+    let mut per_class = Vec::new();
+    for s in headline(plan, scored) {
+        for (c, name) in GLITCH_CLASSES.iter().enumerate() {
+            let k = s.confusions[0].score(c);
+            per_class.push(vec![
+                s.method.clone(),
+                s.train_examples.to_string(),
+                name.to_string(),
+                percent(k.precision),
+                percent(k.recall),
+                percent(k.false_positive_rate),
+                k.support.to_string(),
+            ]);
+        }
+    }
+
+    let gen_header = ["method", "training examples", "test set", "macro precision %", "macro recall %", "drop in recall (points)"];
+    let mut generalisation = Vec::new();
+    for s in scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference) {
+        let (_, r0) = s.confusions[0].macro_scores(&GLITCH_LIKE);
+        for (c, name) in s.confusions.iter().zip(TEST_SET_NAMES) {
+            let (p, r) = c.macro_scores(&GLITCH_LIKE);
+            generalisation.push(vec![
+                s.method.clone(),
+                s.train_examples.to_string(),
+                name.to_string(),
+                percent(p),
+                percent(r),
+                format!("{:.1}", 100.0 * (r0 - r)),
+            ]);
+        }
+    }
+
+    let curve_header = ["method", "training examples", "macro precision %", "macro recall %", "seconds"];
+    let curve: Vec<Vec<String>> = scored
+        .iter()
+        .filter(|s| s.key != "rules")
+        .map(|s| {
+            let (p, r) = s.confusions[0].macro_scores(&GLITCH_LIKE);
+            vec![s.method.clone(), s.train_examples.to_string(), percent(p), percent(r), format!("{:.0}", s.seconds)]
+        })
+        .collect();
+
+    write_file(&o.out, "summary.csv", &csv_table(&main_header, &rows_main))?;
+    write_file(&o.out, "per_class.csv", &csv_table(&per_class_header, &per_class))?;
+    write_file(&o.out, "generalisation.csv", &csv_table(&gen_header, &generalisation))?;
+    write_file(&o.out, "learning_curve.csv", &csv_table(&curve_header, &curve))?;
+
+    // Plots: learning curves and the confusion matrices at the reference size.
+    let mut series: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
+    for l in &LEARNERS {
+        let runs: Vec<&Scored> = scored.iter().filter(|s| s.key == l.key).collect();
+        let xs: Vec<f64> = runs.iter().map(|s| (s.train_examples as f64).log10()).collect();
+        let recall: Vec<f64> = runs.iter().map(|s| 100.0 * s.confusions[0].macro_scores(&GLITCH_LIKE).1).collect();
+        let precision: Vec<f64> = runs.iter().map(|s| 100.0 * s.confusions[0].macro_scores(&GLITCH_LIKE).0).collect();
+        series.push((format!("{} recall", l.title), xs.clone(), recall));
+        series.push((format!("{} precision", l.title), xs, precision));
+    }
+    let refs: Vec<(&str, &[f64], &[f64])> = series.iter().map(|(n, x, y)| (n.as_str(), x.as_slice(), y.as_slice())).collect();
+    plot::lines_plot(
+        &o.out.join("learning_curve.png"),
+        "glitch classification: learning curves",
+        "log10(training examples)",
+        "macro %",
+        &refs,
+    )?;
+    let names: Vec<&str> = GLITCH_CLASSES.to_vec();
+    for s in scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference) {
+        let title = if s.train_examples == 0 { s.method.clone() } else { format!("{} ({} examples)", s.method, s.train_examples) };
+        plot::confusion_plot(&o.out.join(format!("confusion_{}.png", s.key)), &title, &names, &s.confusions[0].counts)?;
+    }
+
+    let mut md = String::new();
+    let mode = if o.quick { "gwml experiment glitch --quick" } else { "gwml experiment glitch" };
+    let _ = writeln!(md, "# Glitch experiment results\n");
+    let _ = writeln!(
+        md,
+        "Written by `{mode}` in {total:.0} s ({data_seconds:.0} s drawing data) on {} threads. Test sets of {} examples each \
+         (six classes drawn uniformly: None, Blip, Koi Fish, Whistle, Scratchy, Chirp); macro averages over the five \
+         classes other than None. Training sets are prefixes of one draw (seed {TRAIN_SEED}); validation seed {VAL_SEED}, \
+         test seed {TEST_SEED}, low-SNR test seed {LOW_SNR_SEED}, shifted-PSD test seed {SHIFTED_PSD_SEED}.\n",
+        o.threads, plan.test
+    );
+    let _ = writeln!(md, "## Methods\n\n{}\n", markdown_table(&main_header, &rows_main));
+    let _ = writeln!(md, "## Per class (standard test set)\n\n{}\n", markdown_table(&per_class_header, &per_class));
+    let _ = writeln!(md, "## Generalisation\n\n{}\n", markdown_table(&gen_header, &generalisation));
+    let _ = writeln!(md, "## Learning curves\n\n{}\n![learning curves](learning_curve.png)\n", markdown_table(&curve_header, &curve));
+    let _ = writeln!(md, "## What the methods learned\n");
+    for s in scored.iter().filter(|s| s.details.is_some() && (s.key == "rules" || s.train_examples == plan.reference)) {
+        let _ = writeln!(md, "{}:\n\n```\n{}\n```\n", s.method, s.details.as_deref().unwrap_or_default());
+    }
+    let _ = writeln!(md, "## Confusion matrices (standard test set)\n");
+    for s in scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference) {
+        let _ = writeln!(md, "![{}](confusion_{}.png)", s.method, s.key);
+    }
+    write_file(&o.out, "README.md", &md)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The whole pipeline at a toy size: every method trains and is scored
+    /// on every test set, and every table and plot is written with its rows.
+    #[test]
+    fn a_tiny_run_writes_every_table_and_plot() {
+        let out = std::env::temp_dir().join(format!("gwml-experiment-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let plan = Plan { sizes: vec![30, 60], reference: 60, val: 30, test: 60, tune: 60, steps: 2, min_epochs: 1, max_epochs: 1 };
+        let o = GlitchExperiment { quick: true, out: out.clone(), threads: 2 };
+        run_plan(&o, &plan).unwrap();
+        let read = |name: &str| std::fs::read_to_string(out.join(name)).unwrap();
+        // Rules, then each learner at the reference size (the largest).
+        let summary = read("summary.csv");
+        assert_eq!(summary.lines().count(), 1 + 3, "{summary}");
+        assert!(summary.contains("Rule-based filtering") && summary.contains("CNN") && summary.contains("template bank"));
+        // Six classes for each of the three methods.
+        assert_eq!(read("per_class.csv").lines().count(), 1 + 3 * 6);
+        // Three test sets for each method.
+        assert_eq!(read("generalisation.csv").lines().count(), 1 + 3 * 3);
+        // Two sizes for each learner.
+        assert_eq!(read("learning_curve.csv").lines().count(), 1 + 2 * 2);
+        for png in ["learning_curve.png", "confusion_rules.png", "confusion_cnn.png", "confusion_template_net.png"] {
+            let bytes = std::fs::read(out.join(png)).unwrap();
+            assert!(bytes.starts_with(b"\x89PNG"), "{png} is not a PNG");
+        }
+        let readme = read("README.md");
+        assert!(readme.contains("## Generalisation") && readme.contains("None: every template"), "{readme}");
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}

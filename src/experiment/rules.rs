@@ -28,8 +28,7 @@
 //!   8–35 ms before the peak minus their loudest ρ 8–35 ms after it (the
 //!   main burst's own leakage into those templates is symmetric in time; a
 //!   Koi Fish's head is not).
-#![cfg_attr(not(test), allow(dead_code))]
-
+use super::metrics::Confusion;
 use gwml::runtime::dataset::Array;
 use gwml::runtime::synth::GLITCH_CLASSES;
 use gwml::{Model, Outputs, Run, Scene, Value};
@@ -52,6 +51,8 @@ const KOI: usize = 2;
 const WHISTLE: usize = 3;
 const SCRATCHY: usize = 4;
 const CHIRP: usize = 5;
+/// Every class: the thresholds maximise the macro F1 over all six.
+const ALL_CLASSES: [usize; 6] = [NONE, BLIP, KOI, WHISTLE, SCRATCHY, CHIRP];
 
 /// One template of the bank, as its output name describes it.
 #[derive(Clone, Debug)]
@@ -400,30 +401,12 @@ fn argmax(v: &[f64]) -> (usize, f64) {
     v.iter().enumerate().fold((0, f64::NEG_INFINITY), |(i, m), (j, x)| if *x > m { (j, *x) } else { (i, m) })
 }
 
-/// Per-class precision and recall, and their macro averages, of predictions
-/// against labels (a class never predicted has precision 0).
-pub fn scores(pred: &[usize], labels: &[usize]) -> (Vec<(f64, f64)>, f64) {
-    let n = GLITCH_CLASSES.len();
-    let mut per = Vec::with_capacity(n);
-    let mut f1 = 0.0;
-    for c in 0..n {
-        let tp = pred.iter().zip(labels).filter(|(p, l)| **p == c && **l == c).count() as f64;
-        let predicted = pred.iter().filter(|p| **p == c).count() as f64;
-        let actual = labels.iter().filter(|l| **l == c).count() as f64;
-        let precision = if predicted > 0.0 { tp / predicted } else { 0.0 };
-        let recall = if actual > 0.0 { tp / actual } else { 0.0 };
-        f1 += if precision + recall > 0.0 { 2.0 * precision * recall / (precision + recall) } else { 0.0 };
-        per.push((precision, recall));
-    }
-    (per, f1 / n as f64)
-}
-
 /// Coordinate-wise grid search over the thresholds for the largest macro F1
 /// (three passes; ties keep the earlier value).
 fn tune_thresholds(features: &[Features], labels: &[usize], start: Thresholds) -> Thresholds {
     let score = |t: &Thresholds| {
         let pred: Vec<usize> = features.iter().map(|f| t.decide(f)).collect();
-        scores(&pred, labels).1
+        Confusion::new(GLITCH_CLASSES.len(), labels, &pred).map_or(0.0, |c| c.macro_f1(&ALL_CLASSES))
     };
     let grid = |lo: f64, hi: f64, n: usize| -> Vec<f64> { (0..n).map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64).collect() };
     type Field = fn(&mut Thresholds) -> &mut f64;
@@ -494,7 +477,7 @@ mod tests {
     use gwml::runtime::synth::{glitches, GlitchOptions};
 
     fn data(n: usize, seed: u64, snr: (f64, f64)) -> (Array, Vec<usize>) {
-        let mut d = glitches(&GlitchOptions { n, seed, snr }).unwrap();
+        let mut d = glitches(&GlitchOptions { n, seed, snr, psd_knee: 0.0 }).unwrap();
         let x = d.arrays.remove("x").unwrap();
         let labels = d.arrays["label"].data.iter().map(|l| *l as usize).collect();
         (x, labels)
@@ -586,17 +569,6 @@ mod tests {
     }
 
     #[test]
-    fn scores_count_precision_and_recall() {
-        let (per, f1) = scores(&[0, 0, 1, 2, 2, 2], &[0, 1, 1, 2, 2, 0]);
-        assert_eq!(per[0], (0.5, 0.5));
-        assert_eq!(per[1], (1.0, 0.5));
-        assert_eq!(per[2], (2.0 / 3.0, 1.0));
-        assert_eq!(per[3], (0.0, 0.0));
-        let f1_2 = 2.0 * (2.0 / 3.0) / (2.0 / 3.0 + 1.0);
-        assert!((f1 - (0.5 + 2.0 / 3.0 + f1_2) / 6.0).abs() < 1e-12);
-    }
-
-    #[test]
     fn bad_data_is_an_error() {
         let c = tuned();
         assert!(c.classify(&Array::new(vec![2, 100], vec![0.0; 200]).unwrap()).is_err());
@@ -648,57 +620,15 @@ mod tests {
     }
 
     fn report(pred: &[usize], labels: &[usize]) {
-        let k = GLITCH_CLASSES.len();
-        let mut m = vec![vec![0usize; k]; k];
-        for (p, l) in pred.iter().zip(labels) {
-            m[*l][*p] += 1;
-        }
+        let c = Confusion::new(GLITCH_CLASSES.len(), labels, pred).unwrap();
         eprintln!("confusion (rows true, columns predicted): {:?}", GLITCH_CLASSES);
-        for (c, row) in m.iter().enumerate() {
-            eprintln!("  {:>9} {:?}", GLITCH_CLASSES[c], row);
+        for (k, row) in c.counts.iter().enumerate() {
+            eprintln!("  {:>9} {:?}", GLITCH_CLASSES[k], row);
         }
-        let (per, f1) = scores(pred, labels);
-        for (c, (p, r)) in per.iter().enumerate() {
-            eprintln!("  {:>9} precision {:.3} recall {:.3}", GLITCH_CLASSES[c], p, r);
+        for (k, name) in GLITCH_CLASSES.iter().enumerate() {
+            let s = c.score(k);
+            eprintln!("  {name:>9} precision {:.3} recall {:.3}", s.precision, s.recall);
         }
-        let acc = pred.iter().zip(labels).filter(|(p, l)| p == l).count() as f64 / labels.len() as f64;
-        eprintln!("  accuracy {acc:.3} macro F1 {f1:.3}");
-    }
-
-    #[test]
-    #[ignore = "exploration: prints feature statistics per class"]
-    fn explore() {
-        let n: usize = std::env::var("N").ok().and_then(|s| s.parse().ok()).unwrap_or(600);
-        let (x, labels) = data(n, 7, (8.0, 30.0));
-        let c = RuleClassifier::new().unwrap();
-        eprintln!("var {:?}", c.var);
-        let mut run = c.scene.bind();
-        let t = std::time::Instant::now();
-        for i in 0..50 {
-            c.filter(&mut run, x.row(i)).unwrap();
-        }
-        eprintln!("bank alone, one thread: {:.3} ms per row", t.elapsed().as_secs_f64() * 1e3 / 50.0);
-        let t = std::time::Instant::now();
-        for i in 0..50 {
-            c.features(&mut run, x.row(i)).unwrap();
-        }
-        eprintln!("features, one thread: {:.3} ms per row", t.elapsed().as_secs_f64() * 1e3 / 50.0);
-        let t = std::time::Instant::now();
-        let feats = c.features_of(&x).unwrap();
-        eprintln!("features: {:.3} ms per row", t.elapsed().as_secs_f64() * 1e3 / n as f64);
-        for (class, name) in GLITCH_CLASSES.iter().enumerate() {
-            eprintln!("== {name}");
-            for (f, _) in feats
-                .iter()
-                .zip(&labels)
-                .filter(|(_, l)| **l == class)
-                .take(std::env::var("SHOW").ok().and_then(|s| s.parse().ok()).unwrap_or(12))
-            {
-                eprintln!(
-                    "  rho_sg {:5.1} f {:6.0} q {:2} chirp {:5.1} ext {:6.1} ext_f {:5.0} head {:5.2}",
-                    f.rho_sg, f.f_sg, f.q_sg, f.rho_chirp, f.ext, f.ext_f, f.head
-                );
-            }
-        }
+        eprintln!("  accuracy {:.3} macro F1 {:.3}", c.accuracy(), c.macro_f1(&ALL_CLASSES));
     }
 }
