@@ -133,7 +133,8 @@ pub fn confusion_plot(path: &Path, title: &str, labels: &[&str], counts: &[Vec<u
         .margin(16)
         .x_label_area_size(48)
         .y_label_area_size(96)
-        .build_cartesian_2d((0..n).into_segmented(), (0..n).into_segmented())
+        // plotters' integer ranges include their end: 0..n-1 gives n cells.
+        .build_cartesian_2d((0..n - 1).into_segmented(), (0..n - 1).into_segmented())
         .map_err(|e| err(&e))?;
     let name = |v: &SegmentValue<usize>| match v {
         SegmentValue::CenterOf(i) | SegmentValue::Exact(i) => labels.get(*i).map_or(String::new(), |s| s.to_string()),

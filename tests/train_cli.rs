@@ -92,4 +92,9 @@ fn glitch_data_has_six_classes_of_whitened_segments() {
     let _ = std::fs::remove_file(&path);
     let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--snr", "30..8", "--out", "/tmp/never.npz"]);
     assert!(!ok && err.contains("SNR range"), "{err}");
+    // A shifted PSD is for glitch data, and its knee cannot be negative.
+    let (ok, _, err) = gwml(&["data", "bursts", "--n", "2", "--psd-knee", "60", "--out", "/tmp/never.npz"]);
+    assert!(!ok && err.contains("glitch data only"), "{err}");
+    let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--psd-knee=-5", "--out", "/tmp/never.npz"]);
+    assert!(!ok && err.contains("knee"), "{err}");
 }

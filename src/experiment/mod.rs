@@ -89,9 +89,9 @@ impl Plan {
                 val: 600,
                 test: 1200,
                 tune: 1500,
-                steps: 1000,
-                min_epochs: 3,
-                max_epochs: 30,
+                steps: 600,
+                min_epochs: 6,
+                max_epochs: 20,
             }
         } else {
             Plan {
@@ -359,7 +359,19 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
         })
         .collect();
 
+    let mut confusion_header = vec!["method", "training examples", "true class"];
+    confusion_header.extend(GLITCH_CLASSES.iter().copied());
+    let mut confusion_rows = Vec::new();
+    for s in scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference) {
+        for (c, row) in s.confusions[0].counts.iter().enumerate() {
+            let mut cells = vec![s.method.clone(), s.train_examples.to_string(), GLITCH_CLASSES[c].to_string()];
+            cells.extend(row.iter().map(|k| k.to_string()));
+            confusion_rows.push(cells);
+        }
+    }
+
     write_file(&o.out, "summary.csv", &csv_table(&main_header, &rows_main))?;
+    write_file(&o.out, "confusion.csv", &csv_table(&confusion_header, &confusion_rows))?;
     write_file(&o.out, "per_class.csv", &csv_table(&per_class_header, &per_class))?;
     write_file(&o.out, "generalisation.csv", &csv_table(&gen_header, &generalisation))?;
     write_file(&o.out, "learning_curve.csv", &csv_table(&curve_header, &curve))?;
@@ -435,6 +447,10 @@ mod tests {
         assert!(summary.contains("Rule-based filtering") && summary.contains("CNN") && summary.contains("template bank"));
         // Six classes for each of the three methods.
         assert_eq!(read("per_class.csv").lines().count(), 1 + 3 * 6);
+        // A row per true class for each method, a column per predicted class.
+        let confusion = read("confusion.csv");
+        assert_eq!(confusion.lines().count(), 1 + 3 * 6);
+        assert!(confusion.lines().all(|l| l.split(',').count() == 3 + 6), "{confusion}");
         // Three test sets for each method.
         assert_eq!(read("generalisation.csv").lines().count(), 1 + 3 * 3);
         // Two sizes for each learner.
