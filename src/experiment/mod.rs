@@ -290,6 +290,13 @@ fn macro_line(c: &Confusion) -> String {
 
 /// The rows of the main table: the rule-based classifier and each learner
 /// at the reference size (and at the largest size, when larger).
+/// The runs the per-class tables, confusion matrices and generalisation
+/// check compare: the rule-based classifier and each learner at the
+/// reference size.
+fn compared<'a>(plan: &'a Plan, scored: &'a [Scored]) -> impl Iterator<Item = &'a Scored> {
+    scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference)
+}
+
 fn headline<'a>(plan: &Plan, scored: &'a [Scored]) -> Vec<&'a Scored> {
     let largest = *plan.sizes.last().expect("at least one size");
     scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference || s.train_examples == largest).collect()
@@ -334,7 +341,7 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
 
     let gen_header = ["method", "training examples", "test set", "macro precision %", "macro recall %", "drop in recall (points)"];
     let mut generalisation = Vec::new();
-    for s in scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference) {
+    for s in compared(plan, scored) {
         let (_, r0) = s.confusions[0].macro_scores(&GLITCH_LIKE);
         for (c, name) in s.confusions.iter().zip(TEST_SET_NAMES) {
             let (p, r) = c.macro_scores(&GLITCH_LIKE);
@@ -362,7 +369,7 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
     let mut confusion_header = vec!["method", "training examples", "true class"];
     confusion_header.extend(GLITCH_CLASSES.iter().copied());
     let mut confusion_rows = Vec::new();
-    for s in scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference) {
+    for s in compared(plan, scored) {
         for (c, row) in s.confusions[0].counts.iter().enumerate() {
             let mut cells = vec![s.method.clone(), s.train_examples.to_string(), GLITCH_CLASSES[c].to_string()];
             cells.extend(row.iter().map(|k| k.to_string()));
@@ -395,7 +402,7 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
         &refs,
     )?;
     let names: Vec<&str> = GLITCH_CLASSES.to_vec();
-    for s in scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference) {
+    for s in compared(plan, scored) {
         let title = if s.train_examples == 0 { s.method.clone() } else { format!("{} ({} examples)", s.method, s.train_examples) };
         plot::confusion_plot(&o.out.join(format!("confusion_{}.png", s.key)), &title, &names, &s.confusions[0].counts)?;
     }
@@ -416,11 +423,11 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
     let _ = writeln!(md, "## Generalisation\n\n{}\n", markdown_table(&gen_header, &generalisation));
     let _ = writeln!(md, "## Learning curves\n\n{}\n![learning curves](learning_curve.png)\n", markdown_table(&curve_header, &curve));
     let _ = writeln!(md, "## What the methods learned\n");
-    for s in scored.iter().filter(|s| s.details.is_some() && (s.key == "rules" || s.train_examples == plan.reference)) {
+    for s in compared(plan, scored).filter(|s| s.details.is_some()) {
         let _ = writeln!(md, "{}:\n\n```\n{}\n```\n", s.method, s.details.as_deref().unwrap_or_default());
     }
     let _ = writeln!(md, "## Confusion matrices (standard test set)\n");
-    for s in scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference) {
+    for s in compared(plan, scored) {
         let _ = writeln!(md, "![{}](confusion_{}.png)", s.method, s.key);
     }
     write_file(&o.out, "README.md", &md)?;

@@ -60,7 +60,7 @@ enum Kind {
     /// A sine-Gaussian at central frequency `f0` (Hz) and quality factor `q`,
     /// of 1/e half-width `tau` (s).
     Sg { f0: f64, q: f64, tau: f64 },
-    /// A TaylorF2 chirp of chirp mass `mc` (Msun).
+    /// A TaylorF2 chirp (its chirp mass, in the name, is checked but not used).
     Chirp,
 }
 
