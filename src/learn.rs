@@ -193,6 +193,9 @@ pub fn data(a: DataArgs) -> Result<(), String> {
             if a.psd_knee != 0.0 {
                 return Err("error: --psd-knee applies to glitch data only".into());
             }
+            if a.class.is_some() {
+                return Err("error: --class applies to glitch data only".into());
+            }
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("6..15"))?;
             let ds = bursts(&BurstOptions { n: a.n, seed: a.seed, snr: (lo, hi), ..Default::default() }).map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;
@@ -206,7 +209,9 @@ pub fn data(a: DataArgs) -> Result<(), String> {
         }
         DataKind::Glitch => {
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("8..30"))?;
-            let ds = glitches(&GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), psd_knee: a.psd_knee }).map_err(render)?;
+            let ds =
+                glitches(&GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), psd_knee: a.psd_knee, class: a.class.map(|c| c.label()) })
+                    .map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;
             let counts: Vec<String> = GLITCH_CLASSES
                 .iter()
@@ -219,7 +224,7 @@ pub fn data(a: DataArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn parse_range(s: &str) -> Result<(f64, f64), String> {
+pub(crate) fn parse_range(s: &str) -> Result<(f64, f64), String> {
     let bad = || format!("error: expected a range LO..HI, got `{s}`");
     let (lo, hi) = s.split_once("..").ok_or_else(bad)?;
     Ok((lo.trim().parse().map_err(|_| bad())?, hi.trim().parse().map_err(|_| bad())?))

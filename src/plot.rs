@@ -23,11 +23,37 @@ pub fn line_plot(path: &Path, title: &str, x_label: &str, y_label: &str, xs: &[f
 /// Draws several `(legend, xs, ys)` series as lines into a PNG at `path`
 /// (a legend is drawn when any name is non-empty).
 pub fn lines_plot(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, &[f64], &[f64])]) -> Result<(), String> {
+    let points: Vec<(&str, Vec<(f64, f64)>)> =
+        series.iter().map(|(name, xs, ys)| (*name, xs.iter().copied().zip(ys.iter().copied()).collect())).collect();
+    xy_plot(path, title, (x_label, y_label), &points, Mark::Line)
+}
+
+/// Draws several `(legend, points)` series as dots on linear axes into a
+/// PNG at `path`.
+pub fn scatter_plot(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, &[(f64, f64)])]) -> Result<(), String> {
+    let points: Vec<(&str, Vec<(f64, f64)>)> = series.iter().map(|(name, p)| (*name, p.to_vec())).collect();
+    xy_plot(path, title, (x_label, y_label), &points, Mark::Dot)
+}
+
+/// How [`xy_plot`] marks a series.
+#[derive(Clone, Copy, PartialEq)]
+enum Mark {
+    Line,
+    Dot,
+}
+
+/// Linear axes fitted to the finite points of every series (a 5 % margin;
+/// lines span the x range exactly), one colour per series.
+fn xy_plot(
+    path: &Path,
+    title: &str,
+    (x_label, y_label): (&str, &str),
+    series: &[(&str, Vec<(f64, f64)>)],
+    mark: Mark,
+) -> Result<(), String> {
     register_font();
-    let finite: Vec<Vec<(f64, f64)>> = series
-        .iter()
-        .map(|(_, xs, ys)| xs.iter().zip(ys.iter()).filter(|(x, y)| x.is_finite() && y.is_finite()).map(|(x, y)| (*x, *y)).collect())
-        .collect();
+    let finite: Vec<Vec<(f64, f64)>> =
+        series.iter().map(|(_, p)| p.iter().filter(|(x, y)| x.is_finite() && y.is_finite()).copied().collect()).collect();
     let all: Vec<(f64, f64)> = finite.iter().flatten().copied().collect();
     if all.is_empty() {
         return Err("nothing to plot: no finite values".into());
@@ -35,9 +61,14 @@ pub fn lines_plot(path: &Path, title: &str, x_label: &str, y_label: &str, series
     let (x0, x1) = all.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
     let (y0, y1) = all.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (_, y)| (a.min(*y), b.max(*y)));
     let pad = |a: f64, b: f64| if b > a { (b - a) * 0.05 } else { a.abs().max(1.0) * 0.05 };
-    let (py, px) = (pad(y0, y1), if x1 > x0 { 0.0 } else { 0.5 });
+    let py = pad(y0, y1);
+    let px = match mark {
+        Mark::Dot => pad(x0, x1),
+        Mark::Line if x1 > x0 => 0.0,
+        Mark::Line => 0.5,
+    };
     let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (900, 540)).into_drawing_area();
+    let root = BitMapBackend::new(path, (900, if mark == Mark::Dot { 600 } else { 540 })).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 22))
@@ -48,14 +79,23 @@ pub fn lines_plot(path: &Path, title: &str, x_label: &str, y_label: &str, series
         .map_err(|e| err(&e))?;
     chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 14)).draw().map_err(|e| err(&e))?;
     let colours = [BLUE, RED, GREEN, MAGENTA, BLACK];
-    for (k, ((name, _, _), points)) in series.iter().zip(finite).enumerate() {
+    for (k, ((name, _), points)) in series.iter().zip(finite).enumerate() {
         let colour = colours[k % colours.len()];
-        let drawn = chart.draw_series(LineSeries::new(points, colour)).map_err(|e| err(&e))?;
-        if !name.is_empty() {
-            drawn.label(*name).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+        match mark {
+            Mark::Line => {
+                let drawn = chart.draw_series(LineSeries::new(points, colour)).map_err(|e| err(&e))?;
+                if !name.is_empty() {
+                    drawn.label(*name).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+                }
+            }
+            Mark::Dot => {
+                let drawn =
+                    chart.draw_series(points.into_iter().map(|p| Circle::new(p, 3, colour.mix(0.6).filled()))).map_err(|e| err(&e))?;
+                drawn.label(*name).legend(move |(x, y)| Circle::new((x + 10, y), 4, colour.filled()));
+            }
         }
     }
-    if series.iter().any(|(n, _, _)| !n.is_empty()) {
+    if series.iter().any(|(n, _)| !n.is_empty()) {
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.8))

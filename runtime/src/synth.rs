@@ -133,6 +133,59 @@ scene coloured_noise {
 }
 ";
 
+/// The whitened signal shapes of [`glitches`], to draw one signal at a time
+/// with params of the caller's choosing (the learned glitch generator
+/// samples through it).
+pub struct GlitchSignals {
+    model: crate::Model,
+    scene: crate::Scene,
+}
+
+impl GlitchSignals {
+    /// Compiles the signal scene.
+    pub fn new() -> Result<GlitchSignals, Error> {
+        let model = crate::Model::from_source("glitch-data.gw", GLITCH_SCENE)?;
+        let scene = model.scene(Some("glitch"))?;
+        Ok(GlitchSignals { model, scene })
+    }
+
+    /// A run of the signal scene, for [`unit_signal`]. Its params are the
+    /// glitch shapes' (`t0`, `f0`, `q`, `f_head`, `head`, `lead`, `f_min`,
+    /// `f_max`, `half`, `rate`, `duration`, `phi`) and the chirp's (`mc`,
+    /// `mass_ratio`, `tc`); unset ones keep their defaults.
+    pub fn bind(&self) -> crate::Run<'_> {
+        self.scene.bind()
+    }
+}
+
+/// The whitened signal of `class` (an index into [`GLITCH_CLASSES`], not
+/// 0) with the given params, scaled to unit norm (optimal SNR 1 in
+/// unit-variance white noise): 4096 samples over 1 s.
+pub fn unit_signal(run: &mut crate::Run, class: usize, settings: &[(&str, f64)]) -> Result<Vec<f64>, Error> {
+    let (mut w, norm) = signal_and_norm(run, class, settings)?;
+    w.iter_mut().for_each(|v| *v /= norm);
+    Ok(w)
+}
+
+/// The whitened signal and its (positive) norm.
+fn signal_and_norm(run: &mut crate::Run, class: usize, settings: &[(&str, f64)]) -> Result<(Vec<f64>, f64), Error> {
+    if class == 0 || class >= GLITCH_CLASSES.len() {
+        return Err(Error::Bind(format!("class {class} has no signal shape")));
+    }
+    run.param("class", class as f64)?;
+    for (name, value) in settings {
+        run.param(name, *value)?;
+    }
+    let Value::RealArray(w) = run.forward()?.value("w")?.clone() else {
+        return Err(Error::Bind("the glitch scene's output is not a real array".into()));
+    };
+    let norm = w.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if norm.is_nan() || norm <= 0.0 {
+        return Err(Error::Bind(format!("a {} signal whitened to zero", GLITCH_CLASSES[class])));
+    }
+    Ok((w, norm))
+}
+
 /// Ranges of the glitch experiment's data.
 #[derive(Clone, Debug)]
 pub struct GlitchOptions {
@@ -150,11 +203,14 @@ pub struct GlitchOptions {
     /// at 20 Hz it is `1 + (knee / 20 Hz)²` times the model's. Zero: the
     /// modelled PSD.
     pub psd_knee: f64,
+    /// Draw only this class (an index into [`GLITCH_CLASSES`]); `None`:
+    /// every class, uniformly at random.
+    pub class: Option<usize>,
 }
 
 impl Default for GlitchOptions {
     fn default() -> Self {
-        GlitchOptions { n: 1000, seed: 1, snr: (8.0, 30.0), psd_knee: 0.0 }
+        GlitchOptions { n: 1000, seed: 1, snr: (8.0, 30.0), psd_knee: 0.0, class: None }
     }
 }
 
@@ -174,9 +230,12 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
     if o.psd_knee.is_nan() || o.psd_knee < 0.0 || o.psd_knee.is_infinite() {
         return Err(Error::Bind(format!("the PSD knee {} Hz must be zero or positive", o.psd_knee)));
     }
-    let model = crate::Model::from_source("glitch-data.gw", GLITCH_SCENE)?;
-    let scene = model.scene(Some("glitch"))?;
-    let mut run = scene.bind();
+    if let Some(c) = o.class.filter(|c| *c >= GLITCH_CLASSES.len()) {
+        return Err(Error::Bind(format!("class {c} is not one of the {} glitch classes", GLITCH_CLASSES.len())));
+    }
+    let signals = GlitchSignals::new()?;
+    let mut run = signals.bind();
+    let model = &signals.model;
     let noise_scene = model.scene(Some("coloured_noise"))?;
     let mut noise_run = noise_scene.bind();
     noise_run.param("knee", o.psd_knee)?;
@@ -184,7 +243,7 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
     let samples = 4096;
     let (mut x, mut labels) = (Vec::with_capacity(o.n * samples), Vec::with_capacity(o.n));
     for _ in 0..o.n {
-        let class = rng.random_range(0..GLITCH_CLASSES.len());
+        let class = o.class.unwrap_or_else(|| rng.random_range(0..GLITCH_CLASSES.len()));
         let mut row: Vec<f64> = (0..samples).map(|_| StandardNormal.sample(&mut rng)).collect();
         if o.psd_knee > 0.0 {
             noise_run.input_real("n", &row)?;
@@ -197,7 +256,6 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
             let mut u = |lo: f64, hi: f64| rng.random_range(lo..=hi);
             let f_min = u(300.0, 900.0);
             let settings = [
-                ("class", class as f64),
                 ("t0", u(0.3, 0.7)),
                 (
                     "f0",
@@ -224,16 +282,9 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
                 ("phi", u(0.0, std::f64::consts::TAU)),
             ];
             let snr = u(o.snr.0, o.snr.1);
-            for (name, value) in settings {
-                run.param(name, value)?;
-            }
-            let Value::RealArray(w) = run.forward()?.value("w")?.clone() else {
-                return Err(Error::Bind("the glitch scene's output is not a real array".into()));
-            };
-            let norm = w.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if norm.is_nan() || norm <= 0.0 {
-                return Err(Error::Bind(format!("a {} signal whitened to zero", GLITCH_CLASSES[class])));
-            }
+            // `snr * v / norm` rather than a unit signal: the same rounding
+            // as the datasets `results/glitch` was computed from.
+            let (w, norm) = signal_and_norm(&mut run, class, &settings)?;
             for (r, v) in row.iter_mut().zip(&w) {
                 *r += snr * v / norm;
             }
@@ -287,7 +338,7 @@ mod glitch_tests {
 
     #[test]
     fn glitch_data_is_reproducible_covers_every_class_and_has_the_drawn_snr() {
-        let o = GlitchOptions { n: 120, seed: 3, snr: (60.0, 60.0), psd_knee: 0.0 };
+        let o = GlitchOptions { n: 120, seed: 3, snr: (60.0, 60.0), psd_knee: 0.0, class: None };
         let a = glitches(&o).unwrap();
         assert_eq!(a, glitches(&o).unwrap());
         let labels = &a.arrays["label"].data;
@@ -318,8 +369,8 @@ mod glitch_tests {
         // 1 + (1/2048 Hz) ∫_{20}^{2000} (knee/f)² df
         //   = 1 + knee² (1/20 - 1/2000) / 2048.
         let knee = 60.0;
-        let plain = glitches(&GlitchOptions { n: 200, seed: 9, snr: (8.0, 30.0), psd_knee: 0.0 }).unwrap();
-        let shifted = glitches(&GlitchOptions { n: 200, seed: 9, snr: (8.0, 30.0), psd_knee: knee }).unwrap();
+        let plain = glitches(&GlitchOptions { n: 200, seed: 9, snr: (8.0, 30.0), psd_knee: 0.0, class: None }).unwrap();
+        let shifted = glitches(&GlitchOptions { n: 200, seed: 9, snr: (8.0, 30.0), psd_knee: knee, class: None }).unwrap();
         let labels = &plain.arrays["label"].data;
         assert_eq!(labels, &shifted.arrays["label"].data);
         let power = |d: &Dataset| -> f64 {

@@ -477,7 +477,7 @@ mod tests {
     use gwml::runtime::synth::{glitches, GlitchOptions};
 
     fn data(n: usize, seed: u64, snr: (f64, f64)) -> (Array, Vec<usize>) {
-        let mut d = glitches(&GlitchOptions { n, seed, snr, psd_knee: 0.0 }).unwrap();
+        let mut d = glitches(&GlitchOptions { n, seed, snr, psd_knee: 0.0, class: None }).unwrap();
         let x = d.arrays.remove("x").unwrap();
         let labels = d.arrays["label"].data.iter().map(|l| *l as usize).collect();
         (x, labels)

@@ -1,0 +1,88 @@
+//! `gwml generator fit` and `gwml generator sample` end to end: examples of
+//! one family are written with `gwml data glitch --class`, a generator is
+//! fitted to them and writes its plot, and its draws are written with one
+//! row per glitch at the drawn SNR.
+
+#[path = "common/cli.rs"]
+mod cli;
+use cli::gwml;
+use gwml::runtime::dataset::Dataset;
+use std::path::Path;
+
+#[test]
+fn fit_a_blip_generator_and_sample_from_it() {
+    let dir = std::env::temp_dir().join(format!("gwml-generator-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |name: &str| dir.join(name).display().to_string();
+
+    let (ok, out, err) =
+        gwml(&["data", "glitch", "--class", "blip", "--n", "24", "--snr", "25..40", "--seed", "4", "--out", &p("blips.npz")]);
+    assert!(ok, "{err}");
+    assert!(out.contains("24 Blip"), "{out}");
+    let (ok, out, err) = gwml(&[
+        "generator",
+        "fit",
+        "--family",
+        "blip",
+        "--examples",
+        &p("blips.npz"),
+        "--out",
+        &p("blip.json"),
+        "--plot",
+        &p("fit.png"),
+        "--threads",
+        "2",
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("generator to") && out.contains("of 24 examples"), "{out}");
+    // The summary compares the examples' estimates with the generator's
+    // draws, one row per param; the drawn examples have Q in 2..6.
+    let q_row = out.lines().find(|l| l.starts_with("q ")).unwrap_or_else(|| panic!("no q row in {out}"));
+    let median: f64 = q_row.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert!((2.0..6.0).contains(&median), "{q_row}");
+    assert!(std::fs::metadata(p("fit.png")).unwrap().len() > 10_000);
+
+    let (ok, out, err) = gwml(&[
+        "generator",
+        "sample",
+        "--model",
+        &p("blip.json"),
+        "--n",
+        "5",
+        "--seed",
+        "3",
+        "--out",
+        &p("draws.npz"),
+        "--plot",
+        &p("draws.png"),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("x (5 × 4096"), "{out}");
+    let ds = Dataset::read(Path::new(&p("draws.npz"))).unwrap();
+    assert_eq!(ds.arrays["x"].shape, vec![5, 4096]);
+    for i in 0..5 {
+        let norm = ds.arrays["x"].row(i).iter().map(|v| v * v).sum::<f64>().sqrt();
+        let snr = ds.arrays["snr"].data[i];
+        assert!((norm / snr - 1.0).abs() < 1e-9, "row {i}: norm {norm}, drawn SNR {snr}");
+        let f0 = ds.arrays["f0"].data[i];
+        assert!((20.0..400.0).contains(&f0), "f0 {f0}");
+    }
+    assert!(std::fs::metadata(p("draws.png")).unwrap().len() > 10_000);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_generator_inputs_are_clear_errors() {
+    let dir = std::env::temp_dir().join(format!("gwml-generator-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |name: &str| dir.join(name).display().to_string();
+    let (ok, _, err) = gwml(&["generator", "fit", "--family", "chirp", "--out", &p("g.json")]);
+    assert!(!ok && err.contains("Chirp is not one"), "{err}");
+    std::fs::write(p("bad.json"), "{\"family\": \"blip\"}").unwrap();
+    let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("bad.json"), "--out", &p("d.npz")]);
+    assert!(!ok && err.contains("not a gwml generator file"), "{err}");
+    let (ok, _, err) = gwml(&["data", "bursts", "--class", "blip", "--out", &p("b.npz")]);
+    assert!(!ok && err.contains("--class applies to glitch data only"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
