@@ -22,6 +22,7 @@ pub(crate) fn options(k: KnobArgs) -> Options {
         precision: k.precision.map(|p| match p {
             PrecisionArg::F64 => Precision::F64,
             PrecisionArg::F32 => Precision::F32,
+            PrecisionArg::Mixed => Precision::Mixed,
         }),
         math: k.math.map(|m| match m {
             MathArg::Exact => MathMode::Exact,

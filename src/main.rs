@@ -70,6 +70,9 @@ pub enum PrecisionArg {
     F64,
     /// 32-bit (reductions still accumulate in 64-bit).
     F32,
+    /// 32-bit, except phases (what flows into sin, cos, tan or a complex
+    /// exp) and reductions, which are 64-bit; `--emit ir` marks them `f64`.
+    Mixed,
 }
 
 /// How generated code computes sin, cos, exp, log, cbrt and pow.

@@ -37,7 +37,7 @@ const COMMANDS: &[(&str, &str)] = &[
     (":run", ":run SCENE [NAME=VALUE ...]      run a loaded scene"),
     (":save", ":save FILE                       write the session as a .gw file"),
     (":plot", ":plot EXPR to FILE.png              line plot of an array against its grid"),
-    (":precision", ":precision f32|f64               working precision"),
+    (":precision", ":precision f64|f32|mixed         working precision"),
     (":defs", ":defs                            list the session's definitions"),
     (":help", ":help                            this list"),
     (":quit", ":quit                            leave (or Ctrl-D)"),
@@ -477,7 +477,8 @@ impl Repl {
                 self.session.precision = Some(match rest {
                     "f64" => Precision::F64,
                     "f32" => Precision::F32,
-                    other => return Err(format!("error: unknown precision `{other}`; use f32 or f64\n")),
+                    "mixed" => Precision::Mixed,
+                    other => return Err(format!("error: unknown precision `{other}`; use f64, f32 or mixed\n")),
                 });
                 println!("precision {rest}");
             }

@@ -78,7 +78,7 @@ impl Row {
 /// Every precision × math combination.
 pub fn all_configs() -> Vec<Config> {
     let mut v = Vec::new();
-    for precision in [Precision::F64, Precision::F32] {
+    for precision in [Precision::F64, Precision::Mixed, Precision::F32] {
         for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
             v.push(Config { precision, math });
         }

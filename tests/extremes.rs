@@ -2,10 +2,11 @@
 //! apply so far): equal mass ratio, a light system with ~1e4 rad of phase
 //! in every math mode, a heavy system whose ISCO leaves few bins; gradients
 //! at singular points; exp overflow and the stable activations at ±1000; a
-//! 10^7-term reduction in f32. Each compares with a high-precision reference
+//! 10^7-term reduction in f32; strains of 1e-23 and phases of 1e4 rad in
+//! f32 and mixed precision. Each compares with a high-precision reference
 //! (or an exact limit) and asserts finite values or a clear error.
 
-use gwml::compiler::ir::MathMode;
+use gwml::compiler::ir::{MathMode, Precision};
 use gwml::compiler::Options;
 use gwml::tradeoff::mismatch;
 use gwml::{Model, Value};
@@ -150,7 +151,7 @@ fn exp_overflow_is_an_error_and_stable_forms_stay_finite_at_1000() {
     let out = run_grad("scene s {\n param x = -800.0\n output a = exp(x)\n grad a wrt x\n}", Options::default()).unwrap();
     assert_eq!((out.scalar("a").unwrap(), out.grad("a", "x").unwrap()), (0.0, 0.0));
     // softplus and sigmoid of ±1000: exact limits and gradients, in f64 and f32.
-    for precision in [gwml::compiler::ir::Precision::F64, gwml::compiler::ir::Precision::F32] {
+    for precision in [Precision::F64, Precision::F32, Precision::Mixed] {
         let opts = Options { precision: Some(precision), math: None };
         for (x, sp, dsp, sg) in [(1000.0, 1000.0, 1.0, 1.0), (-1000.0, 0.0, 0.0, 0.0)] {
             let src = format!(
@@ -180,10 +181,79 @@ fn a_reduction_of_1e7_terms_in_f32_keeps_relative_error_below_1e_6() {
         sum = t;
     }
     let reference = sum + c;
-    for precision in [gwml::compiler::ir::Precision::F64, gwml::compiler::ir::Precision::F32] {
+    for precision in [Precision::F64, Precision::F32, Precision::Mixed] {
         let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
         let got = scene.bind().forward().unwrap().scalar("s").unwrap();
         let rel = ((got - reference) / reference).abs();
         assert!(rel <= 1e-6, "{precision}: {got} vs {reference} (relative error {rel:e})");
     }
+}
+
+/// Strains of 1e-23: in f32 the PSD (~1e-46) and |d - h|² underflow, and
+/// the likelihood is refused as not finite rather than returned wrong. Mixed
+/// precision computes those values in f64 (they are out of f32's range at
+/// the defaults) and the rest in f32: its loss agrees with f64 to 1e-4
+/// (measured 2.5e-8) and its gradient to 1e-3 of the gradient's size
+/// (measured 3e-6).
+#[test]
+fn strains_of_1e_minus_23_in_f32_are_refused_and_in_mixed_agree_with_f64() {
+    let model = Model::from_source("w.gw", SOURCE).unwrap();
+    let run_in = |precision: Precision| {
+        let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
+        let mut run = scene.bind();
+        run.param("mc", 20.05).unwrap().param("q", 0.85).unwrap();
+        run.value_and_grad()
+    };
+    let reference = run_in(Precision::F64).unwrap();
+    let e = run_in(Precision::F32).unwrap_err().to_string();
+    assert!(e.contains("not finite"), "{e}");
+    let mixed = run_in(Precision::Mixed).unwrap();
+    let (l64, lmx) = (reference.scalar("loss").unwrap(), mixed.scalar("loss").unwrap());
+    assert!(l64 > 1.0 && ((lmx - l64) / l64).abs() <= 1e-4, "loss: mixed {lmx} vs f64 {l64}");
+    let params = ["mc", "q", "tc", "phic"];
+    let g64: Vec<f64> = params.iter().map(|p| reference.grad("loss", p).unwrap()).collect();
+    let norm = g64.iter().map(|g| g * g).sum::<f64>().sqrt();
+    for (p, g) in params.iter().zip(&g64) {
+        let gm = mixed.grad("loss", p).unwrap();
+        assert!((gm - g).abs() <= 1e-3 * norm, "dloss/d{p}: mixed {gm} vs f64 {g}");
+    }
+}
+
+/// Phases of 1.4e4 rad (Mc = 1 Msun, q = 1/100, 20-1024 Hz): in f32 the
+/// phase itself carries errors of ~1e4 × 2^-24 rad and more from its PN
+/// polynomial (measured 1.0e-2 rad at most: bounded here by 0.05); mixed
+/// precision keeps the phase in f64 automatically, so only the f32 rounding
+/// of cis(ψ) remains (measured 4e-8 rad: bounded by 1e-6).
+#[test]
+fn phases_of_1e4_rad_in_f32_are_bounded_and_mixed_keeps_them_in_f64() {
+    let src = "use std::taylorf2::{tf2_psi_pn}
+scene w {
+    grid f = frequencies(from: 20 Hz, to: 1024 Hz, step: 0.125 Hz)
+    param mc: Msun = 1.0
+    param q = 0.01
+    output z = cis(tf2_psi_pn(f, mc, q))
+}";
+    let model = Model::from_source("psi.gw", src).unwrap();
+    let z_in = |precision: Precision| {
+        let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
+        // The rule marks cis (and the phase under it) f64; f64 and f32 mark nothing.
+        let wide = scene.forward_ir().wide_values();
+        if precision == Precision::Mixed {
+            let cis = scene
+                .forward_ir()
+                .insts
+                .iter()
+                .position(|i| matches!(i.op, gwml::compiler::ir::Op::Unary(gwml::compiler::ir::UnOp::Cis, _)));
+            assert!(wide[cis.expect("a cis")], "cis is computed in f64");
+        } else {
+            assert!(wide.iter().all(|w| !w));
+        }
+        let Ok(Value::ComplexArray(z)) = scene.bind().forward().unwrap().value("z").cloned() else { panic!("z") };
+        z
+    };
+    let reference = z_in(Precision::F64);
+    let phase_error = |z: &[num_complex::Complex64]| z.iter().zip(&reference).map(|(a, b)| (a / b).arg().abs()).fold(0.0, f64::max);
+    let (e32, emixed) = (phase_error(&z_in(Precision::F32)), phase_error(&z_in(Precision::Mixed)));
+    assert!(e32 > 1e-4 && e32 <= 0.05, "f32 phase error {e32}");
+    assert!(emixed <= 1e-6, "mixed phase error {emixed}");
 }

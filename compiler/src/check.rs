@@ -246,9 +246,10 @@ impl<'a> Checker<'a> {
                 match (name.node.as_str(), value.node.as_str()) {
                     ("precision", "f64") => func.precision = Precision::F64,
                     ("precision", "f32") => func.precision = Precision::F32,
+                    ("precision", "mixed") => func.precision = Precision::Mixed,
                     ("precision", other) => self.error(
                         Diagnostic::error(value.span, format!("unknown precision `{other}`"))
-                            .with_help("use `precision: f64` or `precision: f32`"),
+                            .with_help("use `precision: f64`, `precision: f32` or `precision: mixed` (f32 with phases in f64)"),
                     ),
                     ("math", "exact") => func.math = ir::MathMode::Exact,
                     ("math", "fast") => func.math = ir::MathMode::Fast,
@@ -261,7 +262,7 @@ impl<'a> Checker<'a> {
                         let mut d = Diagnostic::error(name.span, format!("unknown scene setting `{other}`")).with_label("not a knob");
                         d = match did_you_mean(other, ["precision", "math"]) {
                             Some(s) => d.with_help(format!("did you mean `{s}`?")),
-                            None => d.with_help("the knobs are `precision: f64 | f32` and `math: exact | fast | fastest`"),
+                            None => d.with_help("the knobs are `precision: f64 | f32 | mixed` and `math: exact | fast | fastest`"),
                         };
                         self.error(d);
                     }

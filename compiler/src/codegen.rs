@@ -19,7 +19,7 @@
 //! # Kernel ABI
 //! `extern "C" fn(params: *const f64, buffers: *const *mut u8, scalars: *mut f64)`:
 //! `params` holds the scene's params in base units; `buffers[k]` points at
-//! buffer `k` of [`Layout::buffers`] (elements of the working precision,
+//! buffer `k` of [`Layout::buffers`] (elements of the buffer's precision,
 //! complex interleaved re/im) holding exactly `len` elements, which the
 //! runtime guarantees; scalar results are written as f64 to
 //! `scalars[slot]` (complex results take two slots).
@@ -61,6 +61,10 @@ pub struct BufferInfo {
     pub len: usize,
     /// Complex elements take two floats.
     pub complex: bool,
+    /// Element precision: [`Precision::storage`] of the scene's, except
+    /// that in mixed precision the tables, scratch arrays and outputs of
+    /// values computed in f64 are f64 (unless a library call reads them).
+    pub precision: Precision,
 }
 
 /// Where a scalar result is written.
@@ -85,7 +89,7 @@ pub struct Layout {
     pub scalar_slots: usize,
     /// Number of fused loops.
     pub loops: usize,
-    /// Working precision (element type of every buffer).
+    /// The scene's precision (each buffer states its element type).
     pub precision: Precision,
     /// Per entry of [`Function::input_grads`], the buffer holding it
     /// (`None` for a scalar, which has a slot in `scalars`).
@@ -118,7 +122,7 @@ impl PlanBox {
     fn new(dft: Dft, n: usize, precision: Precision) -> PlanBox {
         match precision {
             Precision::F64 => PlanBox::F64(Box::new(DftPlan::new(dft, n))),
-            Precision::F32 => PlanBox::F32(Box::new(DftPlan::new(dft, n))),
+            Precision::F32 | Precision::Mixed => PlanBox::F32(Box::new(DftPlan::new(dft, n))),
         }
     }
 
@@ -217,8 +221,12 @@ fn in_buffer(op: &Op) -> bool {
     matches!(op, Op::Input(_) | Op::Table(_)) || is_call(op)
 }
 
-fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> Schedule {
+fn schedule(func: &Function, wide: &[bool], layout: &mut Layout, plans: &mut Vec<PlanBox>) -> Schedule {
     let n = func.insts.len();
+    let storage = func.precision.storage();
+    // Library calls read and write their buffers in the storage precision.
+    let call_operands: std::collections::HashSet<usize> =
+        func.insts.iter().filter(|i| is_call(&i.op)).flat_map(|i| i.op.operands()).map(|v| v.index()).collect();
     let mut epoch = vec![0u32; n];
     for (i, inst) in func.insts.iter().enumerate() {
         epoch[i] = match inst.op {
@@ -280,7 +288,9 @@ fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> S
             return;
         }
         let ty = func.insts[v].ty;
-        layout.buffers.push(BufferInfo { kind, len: func.len_of(ty.shape), complex: ty.elem == Elem::Complex });
+        let kept_wide = wide[v] && !call_operands.contains(&v) && !is_call(&func.insts[v].op);
+        let precision = if kept_wide { Precision::F64 } else { storage };
+        layout.buffers.push(BufferInfo { kind, len: func.len_of(ty.shape), complex: ty.elem == Elem::Complex, precision });
         stored.insert(v, layout.buffers.len() - 1);
     };
     for (oi, o) in func.outputs.iter().enumerate() {
@@ -312,13 +322,13 @@ fn schedule(func: &Function, layout: &mut Layout, plans: &mut Vec<PlanBox>) -> S
         let plan = match func.insts[d].op {
             Op::Dft(dft, a) => {
                 let time = if dft.inverse { func.insts[d].ty.shape } else { func.ty(a).shape };
-                PlanBox::new(dft, func.len_of(time), func.precision)
+                PlanBox::new(dft, func.len_of(time), storage)
             }
             Op::Tensor(t, ..) => PlanBox::Tensor(Box::new(t)),
             _ => unreachable!("only library calls are listed"),
         };
         let work = (plan.work_floats() > 0).then(|| {
-            layout.buffers.push(BufferInfo { kind: BufferKind::Scratch, len: plan.work_floats(), complex: false });
+            layout.buffers.push(BufferInfo { kind: BufferKind::Scratch, len: plan.work_floats(), complex: false, precision: storage });
             layout.buffers.len() - 1
         });
         plans.push(plan);
@@ -429,18 +439,23 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     let id = module.declare_function("gwml_kernel", Linkage::Export, &ctx.func.signature).map_err(|e| err(&e))?;
     let mut layout =
         Layout { buffers: Vec::new(), scalars: Vec::new(), scalar_slots: 0, loops: 0, precision: func.precision, input_grads: Vec::new() };
+    let storage = func.precision.storage();
+    let wide = func.wide_values();
     for (i, input) in func.inputs.iter().enumerate() {
         layout.buffers.push(BufferInfo {
             kind: BufferKind::Input(i),
             len: func.len_of(input.ty.shape),
             complex: input.ty.elem == Elem::Complex,
+            precision: storage,
         });
     }
     for (k, t) in func.tables.iter().enumerate() {
-        layout.buffers.push(BufferInfo { kind: BufferKind::Table(k), len: t.data.len(), complex: false });
+        let phase = func.insts.iter().enumerate().any(|(i, inst)| wide[i] && inst.op == Op::Table(k as u32));
+        let precision = if phase { Precision::F64 } else { storage };
+        layout.buffers.push(BufferInfo { kind: BufferKind::Table(k), len: t.data.len(), complex: false, precision });
     }
     let mut plans = Vec::new();
-    let sched = schedule(func, &mut layout, &mut plans);
+    let sched = schedule(func, &wide, &mut layout, &mut plans);
     layout.loops = sched.loops.len();
     for r in func.roots() {
         let ty = func.ty(r);
@@ -451,7 +466,9 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
         }
     }
     let mut fbc = FunctionBuilderContext::new();
-    let math = MathEmitter::new(module.isa(), if func.precision == Precision::F32 { types::F32 } else { types::F64 }, func.math);
+    let storage_ty = if storage == Precision::F32 { types::F32 } else { types::F64 };
+    let math64 = MathEmitter::new(module.isa(), types::F64, func.math);
+    let math32 = MathEmitter::new(module.isa(), types::F32, func.math);
     {
         let b = FunctionBuilder::new(&mut ctx.func, &mut fbc);
         let mut g = Gen {
@@ -464,10 +481,13 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
             imports: HashMap::new(),
             ptr,
             bufs: Vec::new(),
-            ft: if func.precision == Precision::F32 { types::F32 } else { types::F64 },
+            ft: storage_ty,
+            storage: storage_ty,
+            wide,
             sincos_slot: None,
             plans: &plans,
-            math,
+            math64,
+            math32,
         };
         g.emit_body()?;
         g.b.seal_all_blocks();
@@ -496,10 +516,17 @@ struct Gen<'a> {
     imports: HashMap<&'static str, FuncRef>,
     ptr: Type,
     bufs: Vec<cranelift_codegen::ir::Value>,
+    /// The float type of the instruction being emitted.
     ft: Type,
+    /// The float type of inputs, outputs and library-call buffers.
+    storage: Type,
+    /// Per instruction: computed in f64 although the storage is f32
+    /// ([`Function::wide_values`]).
+    wide: Vec<bool>,
     sincos_slot: Option<cranelift_codegen::ir::StackSlot>,
     plans: &'a [PlanBox],
-    math: MathEmitter,
+    math64: MathEmitter,
+    math32: MathEmitter,
 }
 
 /// Per-iteration state of one loop.
@@ -593,7 +620,8 @@ impl<'a> Gen<'a> {
             self.import(n)?;
         }
         let f32 = self.f32();
-        let Gen { b, imports, math, .. } = self;
+        let Gen { b, imports, math64, math32, .. } = self;
+        let math = if f32 { math32 } else { math64 };
         let imports: &HashMap<&'static str, FuncRef> = imports;
         let mut slow = |fb: &mut FunctionBuilder, n: &'static str, a: &[cranelift_codegen::ir::Value]| slow_call(fb, imports, f32, n, a);
         let slow: &mut SlowPath = &mut slow;
@@ -709,12 +737,12 @@ impl<'a> Gen<'a> {
         let out = self.bufs[self.sched.stored[&d]];
         let (f, args) = match self.func.insts[d].op {
             Op::Dft(_, a) => {
-                let f = self.import(if self.f32() { "gwml_dft_f32" } else { "gwml_dft_f64" })?;
+                let f = self.import(if self.storage == types::F32 { "gwml_dft_f32" } else { "gwml_dft_f64" })?;
                 let work = self.bufs[work.expect("transforms have work buffers")];
                 (f, vec![plan, self.bufs[self.operand_buffer(a)], out, work])
             }
             Op::Tensor(_, _, a, b) => {
-                let f = self.import(if self.f32() { "gwml_tensor_f32" } else { "gwml_tensor_f64" })?;
+                let f = self.import(if self.storage == types::F32 { "gwml_tensor_f32" } else { "gwml_tensor_f64" })?;
                 (f, vec![plan, self.bufs[self.operand_buffer(a)], self.bufs[self.operand_buffer(b)], out])
             }
             _ => unreachable!("only library calls are scheduled as calls"),
@@ -723,24 +751,45 @@ impl<'a> Gen<'a> {
         Ok(())
     }
 
-    fn widen(&mut self, v: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
-        if self.f32() {
-            self.b.ins().fpromote(types::F64, v)
-        } else {
-            v
+    /// `v` converted to float type `ty` (truth values pass unchanged).
+    fn cast(&mut self, v: cranelift_codegen::ir::Value, ty: Type) -> cranelift_codegen::ir::Value {
+        match (self.b.func.dfg.value_type(v), ty) {
+            (types::F32, types::F64) => self.b.ins().fpromote(types::F64, v),
+            (types::F64, types::F32) => self.b.ins().fdemote(types::F32, v),
+            _ => v,
         }
     }
 
-    fn narrow(&mut self, v: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
-        if self.f32() {
-            self.b.ins().fdemote(types::F32, v)
+    fn cast_cv(&mut self, v: Cv, ty: Type) -> Cv {
+        let re = self.cast(v.re, ty);
+        Cv { re, im: v.im.map(|im| self.cast(im, ty)) }
+    }
+
+    fn widen(&mut self, v: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
+        self.cast(v, types::F64)
+    }
+
+    /// The float type instruction `i` is computed in.
+    fn ty_of(&self, i: usize) -> Type {
+        if self.wide[i] {
+            types::F64
         } else {
-            v
+            self.storage
+        }
+    }
+
+    /// The element type of buffer `buf`.
+    fn buffer_ty(&self, buf: usize) -> Type {
+        if self.layout.buffers[buf].precision == Precision::F64 {
+            types::F64
+        } else {
+            types::F32
         }
     }
 
     fn scalar_inst(&mut self, i: usize, params_ptr: cranelift_codegen::ir::Value) -> Result<Cv, CodegenError> {
         let inst = self.func.insts[i];
+        self.ft = self.ty_of(i);
         Ok(match inst.op {
             Op::Const(b) => Cv::real(self.fconst(f64::from_bits(b))),
             Op::ConstComplex(r, im) => {
@@ -750,39 +799,49 @@ impl<'a> Gen<'a> {
             }
             Op::Param(p) => {
                 let v = self.b.ins().load(types::F64, MemFlagsData::trusted(), params_ptr, (p * 8) as i32);
-                Cv::real(self.narrow(v))
+                Cv::real(self.cast(v, self.ft))
             }
             Op::Input(k) => {
                 let zero = self.b.ins().iconst(types::I64, 0);
-                self.load_elem(k as usize, zero, inst.ty.elem == Elem::Complex)
+                let v = self.load_elem(k as usize, zero, inst.ty.elem == Elem::Complex);
+                self.cast_cv(v, self.ft)
             }
             op => {
-                let mut get = |v: Value| self.vals[&v.index()];
-                let ops: Vec<Cv> = op.operands().into_iter().map(&mut get).collect();
+                let ft = self.ft;
+                let mut ops = Vec::new();
+                for v in op.operands() {
+                    let x = self.vals[&v.index()];
+                    ops.push(self.cast_cv(x, ft));
+                }
                 self.elementwise(inst, &ops, None)?
             }
         })
     }
 
+    /// Element `index` of buffer `buf`, in the buffer's element type.
     fn load_elem(&mut self, buf: usize, index: cranelift_codegen::ir::Value, complex: bool) -> Cv {
-        let size = self.ft.bytes() as i64 * if complex { 2 } else { 1 };
+        let ty = self.buffer_ty(buf);
+        let size = ty.bytes() as i64 * if complex { 2 } else { 1 };
         let off = self.b.ins().imul_imm_s(index, size);
         let addr = self.b.ins().iadd(self.bufs[buf], off);
         let flags = MemFlagsData::trusted();
-        let re = self.b.ins().load(self.ft, flags, addr, 0);
-        let im = complex.then(|| self.b.ins().load(self.ft, flags, addr, self.ft.bytes() as i32));
+        let re = self.b.ins().load(ty, flags, addr, 0);
+        let im = complex.then(|| self.b.ins().load(ty, flags, addr, ty.bytes() as i32));
         Cv { re, im }
     }
 
+    /// Stores `v`, converted to the buffer's element type.
     fn store_elem(&mut self, buf: usize, index: cranelift_codegen::ir::Value, v: Cv, complex: bool) {
-        let size = self.ft.bytes() as i64 * if complex { 2 } else { 1 };
+        let ty = self.buffer_ty(buf);
+        let v = self.cast_cv(v, ty);
+        let size = ty.bytes() as i64 * if complex { 2 } else { 1 };
         let off = self.b.ins().imul_imm_s(index, size);
         let addr = self.b.ins().iadd(self.bufs[buf], off);
         let flags = MemFlagsData::trusted();
         self.b.ins().store(flags, v.re, addr, 0);
         if complex {
             let im = v.im.expect("complex value has an imaginary part");
-            self.b.ins().store(flags, im, addr, self.ft.bytes() as i32);
+            self.b.ins().store(flags, im, addr, ty.bytes() as i32);
         }
     }
 
@@ -840,6 +899,7 @@ impl<'a> Gen<'a> {
             }
             let v = self.loop_operand(&mut lc, Value(m as u32))?;
             if let Some(&buf) = self.sched.stored.get(&m) {
+                self.ft = self.buffer_ty(buf);
                 let v = if inst.ty.elem == Elem::Bool {
                     // Truth values travel between loops as 1.0 / 0.0.
                     let (one, zero) = (self.fconst(1.0), self.fconst(0.0));
@@ -855,11 +915,12 @@ impl<'a> Gen<'a> {
         self.b.ins().jump(header, &[]);
         self.b.switch_to_block(exit);
         for (m, re_var, im_var) in accs {
+            let ty = self.ty_of(m);
             let re = self.b.use_var(re_var);
-            let re = self.narrow(re);
+            let re = self.cast(re, ty);
             let im = im_var.map(|v| {
                 let x = self.b.use_var(v);
-                self.narrow(x)
+                self.cast(x, ty)
             });
             self.vals.insert(m, Cv { re, im });
         }
@@ -876,8 +937,12 @@ impl<'a> Gen<'a> {
         if inst.ty.shape == Shape::Scalar {
             return Ok(self.vals[&i]);
         }
+        let ty = self.ty_of(i);
         let x = match inst.op {
-            Op::Broadcast(a, _) => self.vals[&a.index()],
+            Op::Broadcast(a, _) => {
+                let x = self.vals[&a.index()];
+                self.cast_cv(x, ty)
+            }
             Op::GridCoord(g) => {
                 let grid = &self.func.grids[g.0 as usize];
                 let (start, step) = (grid.start, grid.step);
@@ -886,24 +951,32 @@ impl<'a> Gen<'a> {
                 let s0 = self.b.ins().f64const(start);
                 let prod = self.b.ins().fmul(fi, st);
                 let x = self.b.ins().fadd(s0, prod);
-                Cv::real(self.narrow(x))
+                Cv::real(self.cast(x, ty))
             }
-            Op::Input(k) => self.load_elem(k as usize, lc.index, inst.ty.elem == Elem::Complex),
+            Op::Input(k) => {
+                let x = self.load_elem(k as usize, lc.index, inst.ty.elem == Elem::Complex);
+                self.cast_cv(x, ty)
+            }
             Op::Table(t) => {
                 let buf = self.table_buffer(t);
-                self.load_elem(buf, lc.index, false)
+                let x = self.load_elem(buf, lc.index, false);
+                self.cast_cv(x, ty)
             }
             // Library calls write their whole result before any loop reads it.
-            Op::Dft(..) | Op::Tensor(..) => self.load_elem(self.sched.stored[&i], lc.index, inst.ty.elem == Elem::Complex),
+            Op::Dft(..) | Op::Tensor(..) => {
+                let x = self.load_elem(self.sched.stored[&i], lc.index, inst.ty.elem == Elem::Complex);
+                self.cast_cv(x, ty)
+            }
             // Stored by an earlier loop: reload instead of recomputing.
             _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < lc.epoch => {
                 let buf = self.sched.stored[&i];
                 let v = self.load_elem(buf, lc.index, inst.ty.elem == Elem::Complex);
                 if inst.ty.elem == Elem::Bool {
+                    self.ft = self.buffer_ty(buf);
                     let zero = self.fconst(0.0);
                     Cv::real(self.b.ins().fcmp(FloatCC::NotEqual, v.re, zero))
                 } else {
-                    v
+                    self.cast_cv(v, ty)
                 }
             }
             op => {
@@ -911,6 +984,10 @@ impl<'a> Gen<'a> {
                 for o in op.operands() {
                     ops.push(self.loop_operand(lc, o)?);
                 }
+                for o in &mut ops {
+                    *o = self.cast_cv(*o, ty);
+                }
+                self.ft = ty;
                 self.elementwise(inst, &ops, Some(lc))?
             }
         };

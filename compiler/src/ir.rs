@@ -437,6 +437,29 @@ pub enum Precision {
     F64,
     /// 32-bit floats for arithmetic; reductions accumulate in f64.
     F32,
+    /// f32, except two kinds of values, which are computed (and kept, in
+    /// tables, scratch arrays and outputs) in f64: phases, i.e. every value
+    /// that flows through elementwise arithmetic alone into the argument of
+    /// a sine, cosine, tangent, `cis` or complex exponential, and that
+    /// function itself; and values outside f32's comfortable range, i.e.
+    /// whose largest magnitude, when the scene is evaluated at its default
+    /// params and inputs, is below 2^-96 or above 2^96 (f32's normal range
+    /// less 2^30 of headroom: strains of 1e-23 are f32, their squares and a
+    /// PSD of 1e-46 are f64), and what is computed directly from those
+    /// (a ratio |h|²/S of order one). Reductions accumulate in f64. Inputs, and what
+    /// transforms and tensor ops read and write, stay f32. See
+    /// [`Function::wide_values`].
+    Mixed,
+}
+
+impl Precision {
+    /// The element type of inputs, outputs and library-call buffers.
+    pub fn storage(self) -> Precision {
+        match self {
+            Precision::F64 => Precision::F64,
+            Precision::F32 | Precision::Mixed => Precision::F32,
+        }
+    }
 }
 
 impl fmt::Display for Precision {
@@ -444,6 +467,7 @@ impl fmt::Display for Precision {
         f.write_str(match self {
             Precision::F64 => "f64",
             Precision::F32 => "f32",
+            Precision::Mixed => "mixed",
         })
     }
 }
@@ -608,6 +632,70 @@ impl Function {
         }
     }
 
+    /// Per instruction, whether [`Precision::Mixed`] computes it in f64 (a
+    /// phase, the periodic function of one, or a value out of f32's
+    /// comfortable range at the defaults); all false in the other
+    /// precisions.
+    pub fn wide_values(&self) -> Vec<bool> {
+        let mut wide = vec![false; self.insts.len()];
+        if self.precision != Precision::Mixed {
+            return wide;
+        }
+        if let Some(magnitudes) = self.default_magnitudes() {
+            let (lo, hi) = (2f64.powi(-96), 2f64.powi(96));
+            let out_of_range: Vec<bool> = magnitudes
+                .iter()
+                .enumerate()
+                .map(|(i, m)| self.insts[i].ty.elem != Elem::Bool && *m > 0.0 && (*m < lo || *m > hi))
+                .collect();
+            // A value computed from one out of range is computed in f64 too
+            // (its operands would not survive conversion to f32).
+            for (i, inst) in self.insts.iter().enumerate() {
+                wide[i] = out_of_range[i] || inst.op.operands().iter().any(|a| out_of_range[a.index()]);
+            }
+        }
+        // Operands precede their users, so one backward sweep closes the set.
+        for i in (0..self.insts.len()).rev() {
+            let op = self.insts[i].op;
+            let phase = match op {
+                Op::Unary(UnOp::Sin | UnOp::Cos | UnOp::Tan | UnOp::Cis, a) => Some(a),
+                Op::Unary(UnOp::Exp, a) if self.ty(a).elem == Elem::Complex => Some(a),
+                _ => None,
+            };
+            if let Some(a) = phase {
+                wide[i] = true;
+                wide[a.index()] = true;
+            }
+            let elementwise = !matches!(op, Op::Reduce(..) | Op::Dft(..) | Op::Tensor(..));
+            if wide[i] && elementwise {
+                for a in op.operands() {
+                    wide[a.index()] = true;
+                }
+            }
+        }
+        wide
+    }
+
+    /// The largest finite magnitude of each instruction's value (0 when all
+    /// are zero or not finite) with the params and inputs at their defaults
+    /// (an input without one at zero, a param without one at 1), by the
+    /// reference interpreter; `None` when that would exceed
+    /// [`crate::interp::EVAL_BUDGET`].
+    pub fn default_magnitudes(&self) -> Option<Vec<f64>> {
+        let longest = self.grids.iter().map(|g| g.len).max().unwrap_or(1);
+        if self.insts.len().saturating_mul(longest) > crate::interp::EVAL_BUDGET {
+            return None;
+        }
+        let params: Vec<f64> = self.params.iter().map(|p| p.default.map_or(1.0, |d| d * p.scale)).collect();
+        let inputs: Vec<crate::interp::Tensor> = self
+            .inputs
+            .iter()
+            .map(|i| i.default.clone().unwrap_or_else(|| vec![num_complex::Complex64::new(0.0, 0.0); self.len_of(i.ty.shape)]))
+            .collect();
+        let values = crate::interp::interpret(self, &params, &inputs).values;
+        Some(values.iter().map(|t| t.iter().flat_map(|z| [z.re.abs(), z.im.abs()]).filter(|x| x.is_finite()).fold(0.0, f64::max)).collect())
+    }
+
     /// All values the function returns (outputs, then computed gradients).
     pub fn roots(&self) -> Vec<Value> {
         self.outputs
@@ -767,8 +855,11 @@ impl fmt::Display for Function {
             let (lo, hi) = t.data.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
             let _ = writeln!(s, "  table {k}: real[{}], {} values in [{lo:e}, {hi:e}]", self.grids[t.grid.0 as usize].name, t.data.len());
         }
+        let wide = self.wide_values();
         for (i, inst) in self.insts.iter().enumerate() {
-            let _ = writeln!(s, "  %{i}: {} = {}", self.fmt_ty(inst.ty), self.fmt_op(&inst.op));
+            // In mixed precision, the values computed in f64 are marked.
+            let mark = if wide[i] { " f64" } else { "" };
+            let _ = writeln!(s, "  %{i}: {}{mark} = {}", self.fmt_ty(inst.ty), self.fmt_op(&inst.op));
         }
         for o in &self.outputs {
             let _ = writeln!(s, "  output {} = %{} [{}]", o.name, o.value.0, o.unit);

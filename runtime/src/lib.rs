@@ -182,7 +182,7 @@ impl Scene {
     }
 }
 
-/// Storage for one buffer, in the kernel's precision.
+/// Storage for one buffer, in its precision (see `codegen::BufferInfo`).
 enum Buffer {
     F64(Vec<f64>),
     F32(Vec<f32>),
@@ -201,7 +201,7 @@ impl Buffer {
         }
         Ok(match precision {
             Precision::F64 => Buffer::F64(zeros(floats)?),
-            Precision::F32 => Buffer::F32(zeros(floats)?),
+            Precision::F32 | Precision::Mixed => Buffer::F32(zeros(floats)?),
         })
     }
     fn ptr(&mut self) -> *mut u8 {
@@ -391,11 +391,8 @@ impl<'s> Run<'s> {
         let refill_all = self.filled_for != Some(kernel as *const Kernel);
         if refill_all || self.stale.iter().any(|s| *s) {
             if self.allocated_for != Some(kernel as *const Kernel) {
-                self.scratch = layout
-                    .buffers
-                    .iter()
-                    .map(|b| Ok((b.complex, Buffer::new(layout.precision, floats(b))?)))
-                    .collect::<Result<_, Error>>()?;
+                self.scratch =
+                    layout.buffers.iter().map(|b| Ok((b.complex, Buffer::new(b.precision, floats(b))?))).collect::<Result<_, Error>>()?;
                 self.allocated_for = Some(kernel as *const Kernel);
             }
             for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
