@@ -257,3 +257,63 @@ scene w {
     assert!(e32 > 1e-4 && e32 <= 0.05, "f32 phase error {e32}");
     assert!(emixed <= 1e-6, "mixed phase error {emixed}");
 }
+
+/// A PSD at and beyond the band edges: the analytic aLIGO PSD evaluated on
+/// the whole spectrum grid from 0 Hz (infinite or NaN there, ~1e-40 and
+/// rising steeply toward 10 Hz), and a measured-style curve that is zero
+/// outside 20-2000 Hz. `std::detector` masks those bins (`masked_div`):
+/// sigma, the peak matched-filter SNR and their gradient are finite, equal
+/// those with the PSD evaluated only where it is valid, and the gradient
+/// matches central differences, in f64 and mixed precision.
+#[test]
+fn psds_that_are_infinite_or_zero_outside_the_band_are_masked() {
+    let src = |psd: &str| {
+        format!(
+            "use std::detector::{{sigma, snr_series}}
+use std::psd::{{psd_aligo_zerodet_highpower}}
+use std::burst::{{sine_gaussian_fd}}
+scene e {{
+    grid t = times(rate: 4096 Hz, duration: 1 s)
+    grid f = spectrum(t)
+    param f0: Hz = 150.0
+    let psd = {psd}
+    let h = sine_gaussian_fd(f, 0.5 s, f0, 5.0, 1e-21)
+    output s = sigma(h, psd, f, 20 Hz, 2000 Hz)
+    output rho = max(snr_series(h, h, psd, t, f, 20 Hz, 2000 Hz))
+    grad s wrt [f0]
+}}"
+        )
+    };
+    let valid = Model::from_source("valid.gw", &src("psd_aligo_zerodet_highpower(max(f, 10 Hz))")).unwrap();
+    let reference = valid.scene(None).unwrap().bind().value_and_grad().unwrap();
+    let (s_ref, g_ref) = (reference.scalar("s").unwrap(), reference.grad("s", "f0").unwrap());
+    assert!(s_ref > 10.0 && g_ref.is_finite() && g_ref != 0.0);
+    for psd in [
+        "psd_aligo_zerodet_highpower(f)",
+        "select(f < 20 Hz, 0.0 s, select(f > 2000 Hz, 0.0 s, psd_aligo_zerodet_highpower(max(f, 10 Hz))))",
+    ] {
+        let model = Model::from_source("edge.gw", &src(psd)).unwrap();
+        for precision in [Precision::F64, Precision::Mixed] {
+            let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
+            let out = scene.bind().value_and_grad().unwrap();
+            let (s, g, rho) = (out.scalar("s").unwrap(), out.grad("s", "f0").unwrap(), out.scalar("rho").unwrap());
+            let tol = if precision == Precision::F64 { 1e-12 } else { 1e-5 };
+            assert!(
+                (s / s_ref - 1.0).abs() <= tol && (rho / s_ref - 1.0).abs() <= 1e-5,
+                "{psd} in {precision}: sigma {s}, rho {rho} vs {s_ref}"
+            );
+            assert!((g / g_ref - 1.0).abs() <= 100.0 * tol, "{psd} in {precision}: ds/df0 {g} vs {g_ref}");
+        }
+        // The masked division's gradient against central differences.
+        let scene = model.scene(None).unwrap();
+        let at = |f0: f64| {
+            let mut run = scene.bind();
+            run.param("f0", f0).unwrap();
+            run.forward().unwrap().scalar("s").unwrap()
+        };
+        let h = 1e-4;
+        let fd = (at(150.0 + h) - at(150.0 - h)) / (2.0 * h);
+        let g = scene.bind().value_and_grad().unwrap().grad("s", "f0").unwrap();
+        assert!((g - fd).abs() <= 1e-6 * g.abs(), "{psd}: ds/df0 {g} vs difference {fd}");
+    }
+}

@@ -69,6 +69,7 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("cis", "cis(theta): e^(i theta) for a dimensionless real theta"),
     ("complex", "complex(re, im): a complex number from two reals of the same unit"),
     ("select", "select(cond, a, b): a where cond holds, else b"),
+    ("masked_div", "masked_div(a, s): a / s where s is positive and finite, 0 elsewhere (in values and gradients), e.g. dividing by a PSD that is 0, inf or NaN outside its band"),
     ("sum", "sum(x): sum over the grid of x"),
     ("mean", "mean(x): mean over the grid of x"),
     ("rfft", "rfft(x, f): Fourier transform dt·Σ x_j e^(-2πi f t_j) of a real x over a time grid onto its spectrum grid f"),
@@ -1110,6 +1111,33 @@ impl<'a> Checker<'a> {
         }
     }
 
+    /// `masked_div(a, s)`: `a / s` where `0 < s < ∞`, else 0. The divisor is
+    /// replaced by 1 where it is masked before dividing, so neither the value
+    /// nor the adjoint (which divides by `s` and `s²`) meets 0, inf or NaN.
+    fn masked_div(&mut self, b: &mut Builder, a: (Tv, Span), s: (Tv, Span), at: Span) -> Option<Tv> {
+        self.real_only(b, s, "masked_div")?;
+        let Some(dim) = a.0.dim.times(s.0.dim.inv()) else {
+            self.error(Diagnostic::error(at, "unit exponent overflow").with_help("simplify the units of this expression"));
+            return None;
+        };
+        let (zero, largest) = (b.real(0.0), b.real(f64::MAX));
+        let (sv, zero) = self.unify(b, (s.0.v, s.1), (zero, at), at)?;
+        let (_, largest) = self.unify(b, (s.0.v, s.1), (largest, at), at)?;
+        let (positive, finite) = (b.binary(IrBin::Gt, sv, zero), b.binary(IrBin::Lt, sv, largest));
+        let cond = |v: Value| (Tv { v, dim: Dim::NONE }, at);
+        // Both conditions fail for NaN; `finite` fails for +inf.
+        let masked = |this: &mut Self, b: &mut Builder, x: Tv, fallback: f64| -> Option<Tv> {
+            let other = Tv { v: b.real(fallback), dim: x.dim };
+            let inner = this.select(b, cond(finite), (x, at), (other, at), at)?;
+            this.select(b, cond(positive), (inner, at), (other, at), at)
+        };
+        let safe = masked(self, b, s.0, 1.0)?;
+        let (x, y) = self.unify(b, (a.0.v, a.1), (safe.v, s.1), at)?;
+        let q = Tv { v: b.binary(IrBin::Div, x, y), dim };
+        let masked = masked(self, b, q, 0.0)?;
+        Some(masked)
+    }
+
     fn select(&mut self, b: &mut Builder, c: (Tv, Span), x: (Tv, Span), y: (Tv, Span), at: Span) -> Option<Tv> {
         if b.ty(c.0.v).elem != Elem::Bool {
             self.error(Diagnostic::error(c.1, "condition is not a comparison").with_help("write a comparison such as `x > 0`"));
@@ -1179,7 +1207,7 @@ impl<'a> Checker<'a> {
         }
         let vals: Vec<(Tv, Span)> = vals.into_iter().collect::<Option<_>>()?;
         let arity: &[usize] = match name {
-            "atan2" | "complex" | "rfft" | "irfft" => &[2],
+            "atan2" | "complex" | "rfft" | "irfft" | "masked_div" => &[2],
             "min" | "max" => &[1, 2],
             "clamp" | "select" => &[3],
             _ => &[1],
@@ -1319,6 +1347,7 @@ impl<'a> Checker<'a> {
                 Some(Tv { v: b.binary(op, x, y), dim })
             }
             "rfft" | "irfft" => self.transform(b, name, vals[0], vals[1]),
+            "masked_div" => self.masked_div(b, vals[0], vals[1], at),
             "spacing" => {
                 let Op::GridCoord(g) = b.func.insts[a.0.v.index()].op else {
                     self.error(
