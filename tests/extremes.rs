@@ -189,8 +189,8 @@ fn a_reduction_of_1e7_terms_in_f32_keeps_relative_error_below_1e_6() {
     }
 }
 
-/// Strains of 1e-23: in f32 the PSD (~1e-46) and |d - h|² underflow, and
-/// the likelihood is refused as not finite rather than returned wrong. Mixed
+/// Strains of 1e-23: in f32 the PSD (~1e-46) and |d - h|² underflow, so
+/// the compiler refuses the scene in f32 and points to mixed precision. Mixed
 /// precision computes those values in f64 (they are out of f32's range at
 /// the defaults) and the rest in f32: its loss agrees with f64 to 1e-4
 /// (measured 2.5e-8) and its gradient to 1e-3 of the gradient's size
@@ -198,15 +198,17 @@ fn a_reduction_of_1e7_terms_in_f32_keeps_relative_error_below_1e_6() {
 #[test]
 fn strains_of_1e_minus_23_in_f32_are_refused_and_in_mixed_agree_with_f64() {
     let model = Model::from_source("w.gw", SOURCE).unwrap();
-    let run_in = |precision: Precision| {
-        let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
+    let run_in = |precision: Precision| -> Result<gwml::Outputs, gwml::Error> {
+        let scene = model.scene_with(None, Options { precision: Some(precision), math: None })?;
         let mut run = scene.bind();
-        run.param("mc", 20.05).unwrap().param("q", 0.85).unwrap();
+        run.param("mc", 20.05)?.param("q", 0.85)?;
         run.value_and_grad()
     };
     let reference = run_in(Precision::F64).unwrap();
+    // f32 refuses to compile it: the PSD table (~1e-46) is below f32's
+    // range, and masked division would silently drop the flushed bins.
     let e = run_in(Precision::F32).unwrap_err().to_string();
-    assert!(e.contains("not finite"), "{e}");
+    assert!(e.contains("precision f32 cannot hold") && e.contains("precision: mixed"), "{e}");
     let mixed = run_in(Precision::Mixed).unwrap();
     let (l64, lmx) = (reference.scalar("loss").unwrap(), mixed.scalar("loss").unwrap());
     assert!(l64 > 1.0 && ((lmx - l64) / l64).abs() <= 1e-4, "loss: mixed {lmx} vs f64 {l64}");

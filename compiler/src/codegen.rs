@@ -422,6 +422,9 @@ fn libm_symbols() -> Vec<(&'static str, *const u8)> {
 /// Compiles `func` (optimised IR) to a native kernel.
 pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     let err = |e: &dyn fmt::Display| CodegenError(e.to_string());
+    if let Some(problem) = f32_range_problem(func) {
+        return Err(CodegenError(problem));
+    }
     let mut flags = settings::builder();
     flags.set("opt_level", "speed").map_err(|e| err(&e))?;
     flags.set("enable_verifier", if cfg!(debug_assertions) { "true" } else { "false" }).map_err(|e| err(&e))?;
@@ -503,6 +506,31 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     // SAFETY: `code` is the finalized function with the signature declared above.
     let entry: KernelFn = unsafe { std::mem::transmute::<*const u8, KernelFn>(code) };
     Ok(Kernel { module: Some(module), _plans: plans, entry, layout, clif, clif_insts })
+}
+
+/// In f32, a value (or table) whose largest magnitude at the scene's
+/// defaults is outside f32's normal range would flush to 0 or overflow, and
+/// a masked division could turn that into a silently wrong result: such a
+/// scene is refused, pointing to mixed precision.
+fn f32_range_problem(func: &Function) -> Option<String> {
+    if func.precision != Precision::F32 {
+        return None;
+    }
+    let (lo, hi) = (f32::MIN_POSITIVE as f64, f32::MAX as f64);
+    let out = |m: f64| m > 0.0 && (m < lo || m > hi);
+    let what = if let Some(t) = func.tables.iter().position(|t| out(t.data.iter().fold(0.0, |m, x| m.max(x.abs())))) {
+        format!("a precomputed table (table {t})")
+    } else {
+        let magnitudes = func.default_magnitudes()?;
+        // Constants (and their broadcasts) are exempt: `masked_div` compares
+        // with f64::MAX, which is +inf in f32 and still masks what it should.
+        let computed = |i: usize| !matches!(func.insts[i].op, Op::Const(_) | Op::Broadcast(..)) && func.insts[i].ty.elem != Elem::Bool;
+        let i = (0..func.insts.len()).find(|i| computed(*i) && out(magnitudes[*i]))?;
+        format!("value %{i} (largest magnitude {:e} at the scene's defaults)", magnitudes[i])
+    };
+    Some(format!(
+        "precision f32 cannot hold {what}: it is outside f32's range 1.2e-38..3.4e38; use `precision: mixed`, which computes such values in f64"
+    ))
 }
 
 struct Gen<'a> {
