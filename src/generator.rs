@@ -413,7 +413,7 @@ impl Generator {
     }
 }
 
-/// Compiles the family scene `scene` of the generator's model.
+/// Checks the generator's model (`examples/glitch/generator.gw`, one scene per family).
 pub fn family_model() -> Result<Model, Error> {
     Model::from_source("examples/glitch/generator.gw", GENERATOR_SOURCE)
 }
