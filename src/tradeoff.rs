@@ -60,6 +60,21 @@ pub struct Row {
 }
 
 impl Row {
+    /// The row of a configuration that failed to compile or run.
+    fn failed(config: Config, e: &Error) -> Row {
+        let nan = f64::NAN;
+        Row {
+            config,
+            forward_us: nan,
+            grad_us: None,
+            output_error: nan,
+            grad_error: None,
+            mismatch: None,
+            pareto: false,
+            failure: Some(e.to_string()),
+        }
+    }
+
     /// The time that ranks rows: forward+gradient if the scene has gradients.
     pub fn time_us(&self) -> f64 {
         self.grad_us.unwrap_or(self.forward_us)
@@ -143,30 +158,27 @@ pub fn sweep(
     let count = configs.len();
     for (i, config) in configs.into_iter().enumerate() {
         progress(i, count, config);
-        let compiled = model.scene_with(scene, Options { precision: Some(config.precision), math: Some(config.math) })?;
+        // The reference must compile and run; other settings may fail
+        // (reported in their row), at compile time or when run.
+        let compiled = match model.scene_with(scene, Options { precision: Some(config.precision), math: Some(config.math) }) {
+            Ok(compiled) => compiled,
+            Err(e) if i > 0 => {
+                rows.push(Row::failed(config, &e));
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
         let has_grads = compiled.ir().has_gradients();
         let mut run = compiled.bind();
         bind(&mut run)?;
         let first = if has_grads { run.value_and_grad() } else { run.forward() };
-        let out = match (first, i) {
-            (Ok(out), _) => out,
-            // The reference must run; other settings may fail (reported in their row).
-            (Err(e), 0) => return Err(e),
-            (Err(e), _) => {
-                let nan = f64::NAN;
-                let failure = Some(e.to_string());
-                rows.push(Row {
-                    config,
-                    forward_us: nan,
-                    grad_us: None,
-                    output_error: nan,
-                    grad_error: None,
-                    mismatch: None,
-                    pareto: false,
-                    failure,
-                });
+        let out = match first {
+            Ok(out) => out,
+            Err(e) if i > 0 => {
+                rows.push(Row::failed(config, &e));
                 continue;
             }
+            Err(e) => return Err(e),
         };
         let forward_us = timed(settings.reps, &mut run, false)?;
         let grad_us = if has_grads { Some(timed(settings.reps, &mut run, true)?) } else { None };
