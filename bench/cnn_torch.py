@@ -1,13 +1,16 @@
 #!/usr/bin/env python3
-"""PyTorch CPU peer of benches/cnn.rs: the burst-detection CNN of
-examples/burst_cnn.gw, trained and evaluated on sine-Gaussian bursts in
-white noise, in float64 and float32, on 1 and 2 threads.
+"""PyTorch CPU peer of benches/cnn.rs, in float64 and float32, on 1 and 2
+threads, for its two workloads: `burst`, the burst-detection CNN of
+examples/burst_cnn.gw trained and evaluated on sine-Gaussian bursts in
+white noise, and `glitch`, the glitch experiment's CNN of
+examples/glitch/cnn.gw on white noise with random labels.
 
 Setup (a venv outside the repository):
 
     python3 -m venv /work/venv-torch && /work/venv-torch/bin/pip install torch --index-url https://download.pytorch.org/whl/cpu numpy
     # (or plain PyPI when that index is unreachable: /work/venv-torch/bin/pip install torch numpy)
-    /work/venv-torch/bin/python bench/cnn_torch.py
+    /work/venv-torch/bin/python bench/cnn_torch.py           # both workloads
+    /work/venv-torch/bin/python bench/cnn_torch.py glitch    # one of them
 
 The network is the same as gwml's: input 256 samples (1 channel),
 conv1d 8x1x16 padding 8 + ReLU, max pool 4 (257 -> 64), conv1d 16x8x8
@@ -16,6 +19,11 @@ cross-entropy on 2 classes; Adam lr 3e-3, batch 32. The data (not timed)
 follows gwml_runtime::synth::bursts: unit white noise, half the rows with a
 sine-Gaussian (f0 20..100 Hz, Q 3..12, SNR 6..15, t0 in the middle half)
 at 256 Hz.
+
+The glitch network: input 4,096 samples, conv1d 8x1x16 padding 8 + ReLU,
+max pool 4 (4097 -> 1024), conv1d 16x8x8 padding 4 + ReLU, max pool 4
+(1025 -> 256), conv1d 32x16x8 padding 4 + ReLU, max pool 4 (257 -> 64),
+conv1d 32x32x8 padding 4 + ReLU (65), max pool 65 (global), dense 6x32.
 
 Timed, median of REPS (default 7) after a warm-up, over 1,024 examples:
 - infer: forward pass (no grad) over batches of 32 (logits + loss);
@@ -27,6 +35,7 @@ with `torch_` are machine-readable (`name value`).
 
 import os
 import resource
+import sys
 import time
 
 import numpy as np
@@ -77,6 +86,31 @@ class Cnn(nn.Module):
         return self.d(F.max_pool1d(h2, 65).flatten(1))
 
 
+class GlitchCnn(nn.Module):
+    def __init__(self):
+        super().__init__()
+        self.convs = nn.ModuleList(
+            [nn.Conv1d(1, 8, 16, padding=8), nn.Conv1d(8, 16, 8, padding=4), nn.Conv1d(16, 32, 8, padding=4), nn.Conv1d(32, 32, 8, padding=4)]
+        )
+        self.d = nn.Linear(32, 6)
+        for c in self.convs:
+            nn.init.kaiming_normal_(c.weight, nonlinearity="relu")
+            nn.init.zeros_(c.bias)
+        nn.init.xavier_normal_(self.d.weight)
+        nn.init.zeros_(self.d.bias)
+
+    def forward(self, x):
+        for c in self.convs[:3]:
+            x = F.max_pool1d(F.relu(c(x)), 4)
+        h4 = F.relu(self.convs[3](x))  # 65
+        return self.d(F.max_pool1d(h4, 65).flatten(1))
+
+
+def noise(n, samples, classes, seed):
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal((n, samples)), rng.integers(0, classes, n)
+
+
 def median_s(f):
     for _ in range(REPS // 10 + 1):
         f()
@@ -88,16 +122,14 @@ def median_s(f):
     return sorted(t)[REPS // 2]
 
 
-def main():
-    x_np, y_np = bursts(EXAMPLES, 1)
-    print(f"torch {torch.__version__}: burst CNN, {EXAMPLES} examples of {SAMPLES} samples, batch {BATCH}, median of {REPS}")
-    for dtype, tag in ((torch.float64, "f64"), (torch.float32, "f32")):
+def bench(tag, model_class, x_np, y_np):
+    for dtype, prec in ((torch.float64, "f64"), (torch.float32, "f32")):
         x = torch.from_numpy(x_np).to(dtype).unsqueeze(1)
         y = torch.from_numpy(y_np)
         for threads in (1, 2):
             torch.set_num_threads(threads)
             torch.manual_seed(0)
-            model = Cnn().to(dtype)
+            model = model_class().to(dtype)
             opt = torch.optim.Adam(model.parameters(), lr=3e-3)
             gen = torch.Generator().manual_seed(7)
 
@@ -118,8 +150,20 @@ def main():
             for name, f in (("infer", infer), ("train", train)):
                 s = median_s(f)
                 per_s = EXAMPLES / s
-                print(f"  {tag} {name}_{threads}thread {s * 1e3:10.2f} ms {per_s:14.0f} examples/s {s * 1e6 / EXAMPLES:10.2f} us/example")
-                print(f"torch_cnn_{tag}_{name}_{threads}thread_examples_per_s {per_s:.1f}")
+                print(f"  {prec} {name}_{threads}thread {s * 1e3:10.2f} ms {per_s:14.0f} examples/s {s * 1e6 / EXAMPLES:10.2f} us/example")
+                print(f"torch_{tag}_{prec}_{name}_{threads}thread_examples_per_s {per_s:.1f}")
+
+
+def main():
+    which = [a for a in sys.argv[1:] if not a.startswith("-")]
+    if not which or "burst" in which:
+        x_np, y_np = bursts(EXAMPLES, 1)
+        print(f"torch {torch.__version__}: burst CNN, {EXAMPLES} examples of {SAMPLES} samples, batch {BATCH}, median of {REPS}")
+        bench("cnn", Cnn, x_np, y_np)
+    if not which or "glitch" in which:
+        x_np, y_np = noise(EXAMPLES, 4096, 6, 1)
+        print(f"torch {torch.__version__}: glitch CNN, {EXAMPLES} examples of 4096 samples, batch {BATCH}, median of {REPS}")
+        bench("glitch_cnn", GlitchCnn, x_np, y_np)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"  peak RSS: {peak:.1f} MiB")
     print(f"torch_cnn_peak_rss_mib {peak:.1f}")

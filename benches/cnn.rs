@@ -1,12 +1,21 @@
-//! Throughput of the small burst-detection CNN of `examples/burst_cnn.gw`
-//! (input 256 samples, conv 8×1×16 + ReLU, max pool 4, conv 16×8×8 + ReLU,
-//! global max pool, dense 2×16, cross-entropy), f64, on
-//! `gwml_runtime::synth::bursts` data.
+//! Throughput of gwml's CNNs against `bench/cnn_torch.py` (PyTorch CPU),
+//! on two workloads:
 //!
-//!     cargo bench --bench cnn
+//! - `burst`: the small burst-detection CNN of `examples/burst_cnn.gw`
+//!   (input 256 samples, conv 8×1×16 + ReLU, max pool 4, conv 16×8×8 +
+//!   ReLU, global max pool, dense 2×16, cross-entropy), f64, on
+//!   `gwml_runtime::synth::bursts` data;
+//! - `glitch`: the glitch experiment's CNN of `examples/glitch/cnn.gw`, the
+//!   shape issue #4 names (input 4,096 samples, four convolutions of 8–32
+//!   channels with kernels of 16 and 8, ReLU, max pooling, a dense head of
+//!   6 classes), in f32 (the scene's own precision) and f64, on unit white
+//!   noise with random labels (the values do not change the work done).
 //!
-//! Measures the median wall time (`GWML_BENCH_REPS` repetitions, default 7,
-//! after a warm-up) of
+//! Run `cargo bench --bench cnn` for both workloads, or
+//! `cargo bench --bench cnn -- glitch` for one of them.
+//!
+//! For each it measures the median wall time (`GWML_BENCH_REPS`
+//! repetitions, default 7, after a warm-up) of
 //! - `infer_loop`: the forward kernel over every example with one `Run` on
 //!   this thread (bind `x` and `label`, `Run::forward`);
 //! - `infer`: `Trainer::evaluate` (forward kernel, loss and accuracy) over
@@ -15,16 +24,21 @@
 //!   per batch of 32, lr 3e-3) on 1 and 2 threads, from the initial weights;
 //!
 //! and prints examples per second, plus the process's peak resident memory
-//! (`VmHWM` of /proc/self/status, Linux only). The CPU bench of the same
-//! network in PyTorch is `bench/cnn_torch.py`.
+//! (`VmHWM` of /proc/self/status, Linux only; run one workload per process
+//! to compare it with PyTorch's).
 //!
 //! Lines starting with `gwml_` are machine-readable (`name value`).
 
 use gwml::timing::median_us;
+use gwml_compiler::driver::Options;
+use gwml_compiler::ir::Precision;
+use gwml_runtime::dataset::{Array, Dataset};
 use gwml_runtime::optim::{Method, OptimConfig, Schedule};
 use gwml_runtime::synth::{bursts, BurstOptions};
 use gwml_runtime::train::{TrainOptions, Trainer};
 use gwml_runtime::Model;
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
 use std::hint::black_box;
 
 const EXAMPLES: usize = 1024;
@@ -53,26 +67,36 @@ fn peak_rss_mib() -> Option<f64> {
     Some(kib / 1024.0)
 }
 
-fn report(name: &str, us: f64) {
+fn report(tag: &str, name: &str, us: f64) {
     let per_s = EXAMPLES as f64 / (us * 1e-6);
     println!("  {name:<22} {:>10.2} ms {per_s:>14.0} examples/s {:>10.2} µs/example", us / 1e3, us / EXAMPLES as f64);
-    println!("gwml_cnn_{name}_examples_per_s {per_s:.1}");
+    println!("gwml_{tag}_{name}_examples_per_s {per_s:.1}");
 }
 
-fn main() {
-    let reps: usize = std::env::var("GWML_BENCH_REPS").ok().and_then(|s| s.parse().ok()).unwrap_or(7);
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/burst_cnn.gw");
+/// `n` rows of `samples` unit white-noise values with random labels in `0..classes`.
+fn noise_data(n: usize, samples: usize, classes: usize, seed: u64) -> Dataset {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let x: Vec<f64> = (0..n * samples).map(|_| rng.sample(StandardNormal)).collect();
+    let labels: Vec<f64> = (0..n).map(|_| rng.random_range(0..classes) as f64).collect();
+    let mut data = Dataset::default();
+    data.arrays.insert("x".into(), Array::new(vec![n, samples], x).expect("shape"));
+    data.arrays.insert("label".into(), Array::new(vec![n], labels).expect("shape"));
+    data
+}
+
+/// Times inference and one training epoch of the scene in `path` on `data`.
+fn bench(tag: &str, path: &str, precision: Precision, classes: usize, data: &Dataset, reps: usize) {
     let model = Model::from_file(path).unwrap_or_else(|e| panic!("{e}"));
-    let scene = model.scene(None).unwrap_or_else(|e| panic!("{e}"));
+    let opts = Options { precision: Some(precision), ..Default::default() };
+    let scene = model.scene_with(None, opts).unwrap_or_else(|e| panic!("{e}"));
     scene.gradient_kernel().unwrap_or_else(|e| panic!("{e}"));
-    let data = bursts(&BurstOptions { n: EXAMPLES, seed: 1, ..Default::default() }).unwrap_or_else(|e| panic!("{e}"));
-    let rss_setup = peak_rss_mib();
-    println!("burst_cnn: {EXAMPLES} examples of 256 samples, f64, batch {BATCH}, median of {reps}");
+    let samples = data.arrays["x"].shape[1];
+    println!("{tag}: {EXAMPLES} examples of {samples} samples, {precision:?}, batch {BATCH}, median of {reps}");
 
     // Forward kernel in a plain loop over one Run (weights at their initial values).
     let (x, labels) = (&data.arrays["x"], &data.arrays["label"].data);
     let mut run = scene.bind();
-    let onehot: Vec<[f64; 2]> = labels.iter().map(|l| if *l == 1.0 { [0.0, 1.0] } else { [1.0, 0.0] }).collect();
+    let onehot: Vec<Vec<f64>> = labels.iter().map(|&l| (0..classes).map(|c| f64::from(c as f64 == l)).collect()).collect();
     let infer_loop = median_us(reps, || {
         for (i, label) in onehot.iter().enumerate() {
             run.input_real("x", x.row(i)).unwrap();
@@ -80,29 +104,46 @@ fn main() {
             black_box(run.forward().unwrap());
         }
     });
-    report("infer_loop", infer_loop);
+    report(tag, "infer_loop", infer_loop);
 
     for threads in [1, 2] {
         let trainer = Trainer::new(&scene, options(threads)).unwrap_or_else(|e| panic!("{e}"));
         let us = median_us(reps, || {
-            black_box(trainer.evaluate(&data).unwrap());
+            black_box(trainer.evaluate(data).unwrap());
         });
-        report(&format!("infer_{threads}thread"), us);
+        report(tag, &format!("infer_{threads}thread"), us);
     }
     let mut losses = Vec::new();
     for threads in [1, 2] {
         let us = median_us(reps, || {
             let mut trainer = Trainer::new(&scene, options(threads)).unwrap();
-            let r = trainer.fit(&data, None, |_, _| {}, |_| {}).unwrap();
+            let r = trainer.fit(data, None, |_, _| {}, |_| {}).unwrap();
             black_box(&r);
             losses.push((threads, r[0].train_loss));
         });
-        report(&format!("train_{threads}thread"), us);
+        report(tag, &format!("train_{threads}thread"), us);
     }
     let (l1, l2) = (losses.iter().find(|l| l.0 == 1).unwrap().1, losses.iter().find(|l| l.0 == 2).unwrap().1);
     println!("  epoch train loss: {l1:.6} (1 thread), {l2:.6} (2 threads)");
-    if let (Some(setup), Some(peak)) = (rss_setup, peak_rss_mib()) {
-        println!("  peak RSS: {peak:.1} MiB (after compiling and drawing the data: {setup:.1} MiB)");
+}
+
+fn main() {
+    let reps: usize = std::env::var("GWML_BENCH_REPS").ok().and_then(|s| s.parse().ok()).unwrap_or(7);
+    let which: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with('-')).collect();
+    let wants = |w: &str| which.is_empty() || which.iter().any(|a| a == w);
+    let root = env!("CARGO_MANIFEST_DIR");
+    if wants("burst") {
+        let data = bursts(&BurstOptions { n: EXAMPLES, seed: 1, ..Default::default() }).unwrap_or_else(|e| panic!("{e}"));
+        bench("cnn", &format!("{root}/examples/burst_cnn.gw"), Precision::F64, 2, &data, reps);
+    }
+    if wants("glitch") {
+        let data = noise_data(EXAMPLES, 4096, 6, 1);
+        for (tag, precision) in [("glitch_cnn_f32", Precision::F32), ("glitch_cnn_f64", Precision::F64)] {
+            bench(tag, &format!("{root}/examples/glitch/cnn.gw"), precision, 6, &data, reps);
+        }
+    }
+    if let Some(peak) = peak_rss_mib() {
+        println!("  peak RSS: {peak:.1} MiB");
         println!("gwml_cnn_peak_rss_mib {peak:.1}");
     }
     println!("gwml_cnn_examples {EXAMPLES}");

@@ -29,7 +29,9 @@ use crate::ir::*;
 use crate::mathlib::{MathEmitter, SlowPath};
 use crate::tensor::{gwml_tensor_f32, gwml_tensor_f64};
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
-use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type};
+use cranelift_codegen::ir::{
+    types, AbiParam, Endianness, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type,
+};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_jit::{JITBuilder, JITModule};
@@ -487,6 +489,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
             ft: storage_ty,
             storage: storage_ty,
             wide,
+            vector: None,
             sincos_slot: None,
             plans: &plans,
             math64,
@@ -544,8 +547,12 @@ struct Gen<'a> {
     imports: HashMap<&'static str, FuncRef>,
     ptr: Type,
     bufs: Vec<cranelift_codegen::ir::Value>,
-    /// The float type of the instruction being emitted.
+    /// The float type of the instruction being emitted (the lane type in a
+    /// vectorised loop).
     ft: Type,
+    /// In a vectorised loop: its lane type (every value of the loop has
+    /// it), whose values are 128-bit vectors of that type.
+    vector: Option<Type>,
     /// The float type of inputs, outputs and library-call buffers.
     storage: Type,
     /// Per instruction: computed in f64 although the storage is f32
@@ -570,10 +577,33 @@ impl<'a> Gen<'a> {
     }
 
     fn fconst(&mut self, x: f64) -> cranelift_codegen::ir::Value {
-        if self.f32() {
-            self.b.ins().f32const(x as f32)
+        let c = if self.f32() { self.b.ins().f32const(x as f32) } else { self.b.ins().f64const(x) };
+        self.splat(c)
+    }
+
+    /// `x` in every lane when emitting a vectorised loop, else `x`.
+    fn splat(&mut self, x: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
+        let ty = self.b.func.dfg.value_type(x);
+        match self.vector {
+            Some(_) if !ty.is_vector() => self.b.ins().splat(vector_of(ty), x),
+            _ => x,
+        }
+    }
+
+    /// `c ? x : y`, for a truth value `c` (a lane mask in vectorised loops).
+    fn select(
+        &mut self,
+        c: cranelift_codegen::ir::Value,
+        x: cranelift_codegen::ir::Value,
+        y: cranelift_codegen::ir::Value,
+    ) -> cranelift_codegen::ir::Value {
+        let ty = self.b.func.dfg.value_type(x);
+        if ty.is_vector() {
+            let flags = MemFlagsData::new().with_endianness(Endianness::Little);
+            let mask = self.b.ins().bitcast(ty, flags, c);
+            self.b.ins().bitselect(mask, x, y)
         } else {
-            self.b.ins().f64const(x)
+            self.b.ins().select(c, x, y)
         }
     }
 
@@ -853,6 +883,11 @@ impl<'a> Gen<'a> {
         let off = self.b.ins().imul_imm_s(index, size);
         let addr = self.b.ins().iadd(self.bufs[buf], off);
         let flags = MemFlagsData::trusted();
+        if self.vector.is_some() {
+            // Consecutive elements; buffers are only element-aligned.
+            let v = self.b.ins().load(vector_of(ty), MemFlagsData::new().with_notrap(), addr, 0);
+            return Cv::real(v);
+        }
         let re = self.b.ins().load(ty, flags, addr, 0);
         let im = complex.then(|| self.b.ins().load(ty, flags, addr, ty.bytes() as i32));
         Cv { re, im }
@@ -865,7 +900,7 @@ impl<'a> Gen<'a> {
         let size = ty.bytes() as i64 * if complex { 2 } else { 1 };
         let off = self.b.ins().imul_imm_s(index, size);
         let addr = self.b.ins().iadd(self.bufs[buf], off);
-        let flags = MemFlagsData::trusted();
+        let flags = if self.vector.is_some() { MemFlagsData::new().with_notrap() } else { MemFlagsData::trusted() };
         self.b.ins().store(flags, v.re, addr, 0);
         if complex {
             let im = v.im.expect("complex value has an imaginary part");
@@ -873,38 +908,104 @@ impl<'a> Gen<'a> {
         }
     }
 
+    /// Emits loop `l`: when [`Gen::vector_lane`] allows, a vectorised loop
+    /// over as many whole vectors as fit, then a scalar loop over the rest.
     fn emit_loop(&mut self, l: usize) -> Result<(), CodegenError> {
         let (_, grid, ref members) = self.sched.loops[l];
-        let members = members.clone();
         let len = self.func.grids[grid.0 as usize].len as i64;
+        let reductions: Vec<(usize, Reduce, bool)> = members
+            .iter()
+            .filter_map(|&m| match self.func.insts[m].op {
+                Op::Reduce(r, a) => Some((m, r, self.func.ty(a).elem == Elem::Complex)),
+                _ => None,
+            })
+            .collect();
         // Accumulators of reductions (f64 even in f32 mode).
-        let mut accs: Vec<(usize, Variable, Option<Variable>)> = Vec::new();
-        for &m in &members {
-            if let Op::Reduce(r, a) = self.func.insts[m].op {
-                let complex = self.func.ty(a).elem == Elem::Complex;
+        let mut accs: Vec<(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Value>)> = reductions
+            .iter()
+            .map(|&(_, r, complex)| {
                 let init = if r == Reduce::Max { f64::NEG_INFINITY } else { 0.0 };
-                let re = self.b.declare_var(types::F64);
-                let v = self.b.ins().f64const(init);
-                self.b.def_var(re, v);
-                let im = complex.then(|| {
-                    let im = self.b.declare_var(types::F64);
-                    let z = self.b.ins().f64const(0.0);
-                    self.b.def_var(im, z);
-                    im
-                });
-                accs.push((m, re, im));
+                (self.b.ins().f64const(init), complex.then(|| self.b.ins().f64const(0.0)))
+            })
+            .collect();
+        let mut start = 0;
+        if let Some(lane) = self.vector_lane(l) {
+            let lanes = (16 / lane.bytes()) as i64;
+            let end = len - len % lanes;
+            if end > 0 {
+                // Vectorised reductions are real and accumulate in f64x2:
+                // f32x4 loops keep two accumulators (lanes 0–1 and 2–3),
+                // the second in the slot of the imaginary part.
+                let init: Vec<_> = accs
+                    .iter()
+                    .map(|&(re, _)| {
+                        let v = self.b.ins().splat(types::F64X2, re);
+                        (v, (lane == types::F32).then_some(v))
+                    })
+                    .collect();
+                self.vector = Some(lane);
+                let out = self.emit_loop_range(l, (0, end), lanes, &init);
+                self.vector = None;
+                accs = out?
+                    .into_iter()
+                    .zip(&reductions)
+                    .map(|((v, high), &(_, r, _))| {
+                        let v = match high {
+                            Some(h) => self.reduce_step(r, v, h),
+                            None => v,
+                        };
+                        let (a, b) = (self.b.ins().extractlane(v, 0), self.b.ins().extractlane(v, 1));
+                        (self.reduce_step(r, a, b), None)
+                    })
+                    .collect();
+                start = end;
             }
         }
+        if start < len {
+            accs = self.emit_loop_range(l, (start, len), 1, &accs)?;
+        }
+        for (&(m, ..), (re, im)) in reductions.iter().zip(accs) {
+            let ty = self.ty_of(m);
+            let re = self.cast(re, ty);
+            let im = im.map(|x| self.cast(x, ty));
+            self.vals.insert(m, Cv { re, im });
+        }
+        Ok(())
+    }
+
+    /// One loop of `l`'s members over indices `from..to` in steps of
+    /// `step` (the lane count when vectorised), with reduction accumulators
+    /// starting at `init` (in member order); returns their final values.
+    fn emit_loop_range(
+        &mut self,
+        l: usize,
+        (from, to): (i64, i64),
+        step: i64,
+        init: &[(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Value>)],
+    ) -> Result<Vec<(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Value>)>, CodegenError> {
+        let members = self.sched.loops[l].2.clone();
+        let mut accs: Vec<(usize, Variable, Option<Variable>)> = Vec::new();
+        let reductions = members.iter().filter(|&&m| matches!(self.func.insts[m].op, Op::Reduce(..)));
+        for (&m, &(re0, im0)) in reductions.zip(init) {
+            let re = self.b.declare_var(self.b.func.dfg.value_type(re0));
+            self.b.def_var(re, re0);
+            let im = im0.map(|v| {
+                let im = self.b.declare_var(self.b.func.dfg.value_type(v));
+                self.b.def_var(im, v);
+                im
+            });
+            accs.push((m, re, im));
+        }
         let ivar = self.b.declare_var(types::I64);
-        let zero = self.b.ins().iconst(types::I64, 0);
-        self.b.def_var(ivar, zero);
+        let first = self.b.ins().iconst(types::I64, from);
+        self.b.def_var(ivar, first);
         let header = self.b.create_block();
         let body = self.b.create_block();
         let exit = self.b.create_block();
         self.b.ins().jump(header, &[]);
         self.b.switch_to_block(header);
         let i = self.b.use_var(ivar);
-        let more = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, i, len);
+        let more = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, i, to);
         self.b.ins().brif(more, body, &[], exit, &[]);
         self.b.switch_to_block(body);
         let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: i, vals: HashMap::new() };
@@ -914,8 +1015,19 @@ impl<'a> Gen<'a> {
                 let x = self.loop_operand(&mut lc, a)?;
                 let (_, re_var, im_var) = *accs.iter().find(|(k, ..)| *k == m).expect("accumulator declared");
                 let acc = self.b.use_var(re_var);
+                if self.vector == Some(types::F32) {
+                    // f32x4 → two f64x2 halves, into the two accumulators.
+                    let iv = im_var.expect("f32x4 reductions have two accumulators");
+                    let (low, high) = self.promote_halves(x.re);
+                    let next = self.reduce_step(r, acc, low);
+                    self.b.def_var(re_var, next);
+                    let acc = self.b.use_var(iv);
+                    let next = self.reduce_step(r, acc, high);
+                    self.b.def_var(iv, next);
+                    continue;
+                }
                 let xr = self.widen(x.re);
-                let next = if r == Reduce::Max { self.b.ins().fmax(acc, xr) } else { self.b.ins().fadd(acc, xr) };
+                let next = self.reduce_step(r, acc, xr);
                 self.b.def_var(re_var, next);
                 if let (Some(iv), Some(xi)) = (im_var, x.im) {
                     let acc = self.b.use_var(iv);
@@ -931,28 +1043,108 @@ impl<'a> Gen<'a> {
                 let v = if inst.ty.elem == Elem::Bool {
                     // Truth values travel between loops as 1.0 / 0.0.
                     let (one, zero) = (self.fconst(1.0), self.fconst(0.0));
-                    Cv::real(self.b.ins().select(v.re, one, zero))
+                    Cv::real(self.select(v.re, one, zero))
                 } else {
                     v
                 };
                 self.store_elem(buf, lc.index, v, inst.ty.elem == Elem::Complex);
             }
         }
-        let next = self.b.ins().iadd_imm_s(i, 1);
+        let next = self.b.ins().iadd_imm_s(i, step);
         self.b.def_var(ivar, next);
         self.b.ins().jump(header, &[]);
         self.b.switch_to_block(exit);
-        for (m, re_var, im_var) in accs {
-            let ty = self.ty_of(m);
-            let re = self.b.use_var(re_var);
-            let re = self.cast(re, ty);
-            let im = im_var.map(|v| {
-                let x = self.b.use_var(v);
-                self.cast(x, ty)
-            });
-            self.vals.insert(m, Cv { re, im });
+        Ok(accs
+            .into_iter()
+            .map(|(_, re, im)| {
+                let re = self.b.use_var(re);
+                (re, im.map(|v| self.b.use_var(v)))
+            })
+            .collect())
+    }
+
+    /// One step of reduction `r`: `acc + x` or `max(acc, x)`.
+    fn reduce_step(
+        &mut self,
+        r: Reduce,
+        acc: cranelift_codegen::ir::Value,
+        x: cranelift_codegen::ir::Value,
+    ) -> cranelift_codegen::ir::Value {
+        if r == Reduce::Max {
+            self.b.ins().fmax(acc, x)
+        } else {
+            self.b.ins().fadd(acc, x)
         }
-        Ok(())
+    }
+
+    /// Lanes 0–1 and 2–3 of an f32x4, each promoted to an f64x2.
+    fn promote_halves(&mut self, x: cranelift_codegen::ir::Value) -> (cranelift_codegen::ir::Value, cranelift_codegen::ir::Value) {
+        let le = MemFlagsData::new().with_endianness(Endianness::Little);
+        let low = self.b.ins().fvpromote_low(x);
+        let bytes = self.b.ins().bitcast(types::I8X16, le, x);
+        let swap: Vec<u8> = (8..16).chain(0..8).collect();
+        let mask = self.b.func.dfg.immediates.push(swap.into());
+        let swapped = self.b.ins().shuffle(bytes, bytes, mask);
+        let swapped = self.b.ins().bitcast(types::F32X4, le, swapped);
+        (low, self.b.ins().fvpromote_low(swapped))
+    }
+
+    /// The lane type loop `l` can be vectorised in (128-bit vectors: f64x2
+    /// or f32x4), or `None` to keep it scalar. Vectorised loops hold real
+    /// values and truth values of one float type only, computed by
+    /// arithmetic, comparisons, selects, `sqrt`, `abs`, `min`/`max` and
+    /// small integer powers (no library or inline-math calls, no complex
+    /// numbers), reading buffers of that type. Real reductions accumulate
+    /// in f64x2 (two accumulators for f32x4).
+    fn vector_lane(&self, l: usize) -> Option<Type> {
+        let (epoch, _, ref members) = self.sched.loops[l];
+        let lane = self.ty_of(*members.first()?);
+        let mut seen = std::collections::HashSet::new();
+        for &m in members {
+            let ok = match self.func.insts[m].op {
+                Op::Reduce(_, a) => self.vectorisable(a.index(), lane, epoch, &mut seen),
+                _ => {
+                    self.vectorisable(m, lane, epoch, &mut seen) && self.sched.stored.get(&m).is_none_or(|&buf| self.buffer_ty(buf) == lane)
+                }
+            };
+            if !ok {
+                return None;
+            }
+        }
+        Some(lane)
+    }
+
+    /// Whether value `i`, and what a loop of `epoch` computes it from, can
+    /// be emitted with `lane`-typed vectors (see [`Gen::vector_lane`]).
+    fn vectorisable(&self, i: usize, lane: Type, epoch: u32, seen: &mut std::collections::HashSet<usize>) -> bool {
+        if !seen.insert(i) {
+            return true;
+        }
+        let inst = self.func.insts[i];
+        if inst.ty.shape == Shape::Scalar {
+            return inst.ty.elem == Elem::Real;
+        }
+        if inst.ty.elem == Elem::Complex || self.ty_of(i) != lane {
+            return false;
+        }
+        let buffer_ok = |buf: usize| self.buffer_ty(buf) == lane;
+        let mut operands_ok = || inst.op.operands().iter().all(|o| self.vectorisable(o.index(), lane, epoch, seen));
+        match inst.op {
+            Op::Broadcast(..) => operands_ok(),
+            Op::GridCoord(_) => lane == types::F64,
+            Op::Input(k) => buffer_ok(k as usize),
+            Op::Table(t) => buffer_ok(self.table_buffer(t)),
+            Op::Dft(..) | Op::Tensor(..) => buffer_ok(self.sched.stored[&i]),
+            _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < epoch => buffer_ok(self.sched.stored[&i]),
+            Op::Unary(u, _) => matches!(u, UnOp::Neg | UnOp::Sqrt | UnOp::Abs | UnOp::Sign | UnOp::Re) && operands_ok(),
+            Op::Binary(op, ..) => !matches!(op, BinOp::Pow | BinOp::Atan2 | BinOp::Complex) && operands_ok(),
+            Op::PowConst(_, bits) => {
+                let c = f64::from_bits(bits);
+                ((c == c.trunc() && c.abs() <= 16.0) || c == 0.5) && operands_ok()
+            }
+            Op::Select(..) => operands_ok(),
+            _ => false,
+        }
     }
 
     /// The value of `v` inside the current loop iteration.
@@ -963,20 +1155,40 @@ impl<'a> Gen<'a> {
         }
         let inst = self.func.insts[i];
         if inst.ty.shape == Shape::Scalar {
-            return Ok(self.vals[&i]);
+            let x = self.vals[&i];
+            return Ok(match self.vector {
+                Some(lane) => {
+                    let x = self.cast(x.re, lane);
+                    Cv::real(self.splat(x))
+                }
+                None => x,
+            });
         }
         let ty = self.ty_of(i);
         let x = match inst.op {
             Op::Broadcast(a, _) => {
                 let x = self.vals[&a.index()];
-                self.cast_cv(x, ty)
+                let x = self.cast_cv(x, ty);
+                Cv { re: self.splat(x.re), im: x.im }
             }
             Op::GridCoord(g) => {
                 let grid = &self.func.grids[g.0 as usize];
                 let (start, step) = (grid.start, grid.step);
                 let fi = self.b.ins().fcvt_from_sint(types::F64, lc.index);
+                let fi = match self.vector {
+                    // Lane k holds index + k (exact: indices are far below 2^53).
+                    Some(_) => {
+                        let base = self.b.ins().splat(types::F64X2, fi);
+                        let (zero, one) = (self.b.ins().f64const(0.0), self.b.ins().f64const(1.0));
+                        let k = self.b.ins().scalar_to_vector(types::F64X2, zero);
+                        let k = self.b.ins().insertlane(k, one, 1);
+                        self.b.ins().fadd(base, k)
+                    }
+                    None => fi,
+                };
                 let st = self.b.ins().f64const(step);
                 let s0 = self.b.ins().f64const(start);
+                let (st, s0) = (self.splat(st), self.splat(s0));
                 let prod = self.b.ins().fmul(fi, st);
                 let x = self.b.ins().fadd(s0, prod);
                 Cv::real(self.cast(x, ty))
@@ -1061,8 +1273,8 @@ impl<'a> Gen<'a> {
                         let z = self.b.ins().fmul(x, zero);
                         let pos = self.b.ins().fcmp(FloatCC::GreaterThan, x, zero);
                         let neg = self.b.ins().fcmp(FloatCC::LessThan, x, zero);
-                        let t = self.b.ins().select(neg, mone, z);
-                        Cv::real(self.b.ins().select(pos, one, t))
+                        let t = self.select(neg, mone, z);
+                        Cv::real(self.select(pos, one, t))
                     }
                     UnOp::Re => Cv::real(x),
                     UnOp::Im => Cv::real(a.im.expect("complex")),
@@ -1146,9 +1358,9 @@ impl<'a> Gen<'a> {
             Op::PowConst(_, bits) => Cv::real(self.pow_const(ops[0].re, f64::from_bits(bits))?),
             Op::Select(..) => {
                 let (c, x, y) = (ops[0].re, ops[1], ops[2]);
-                let re = self.b.ins().select(c, x.re, y.re);
+                let re = self.select(c, x.re, y.re);
                 let im = match (x.im, y.im) {
-                    (Some(xi), Some(yi)) => Some(self.b.ins().select(c, xi, yi)),
+                    (Some(xi), Some(yi)) => Some(self.select(c, xi, yi)),
                     _ => None,
                 };
                 Cv { re, im }
@@ -1199,6 +1411,11 @@ impl<'a> Gen<'a> {
 
 /// Calls libm's `name` (f64 name) from the inline code's cold path; the
 /// functions were imported beforehand (see [`Gen::math`]).
+/// The 128-bit vector of lane type `ty` (f64x2 or f32x4).
+fn vector_of(ty: Type) -> Type {
+    ty.by(16 / ty.bytes()).expect("a 128-bit vector of a float type")
+}
+
 fn slow_call(
     fb: &mut FunctionBuilder,
     imports: &HashMap<&'static str, FuncRef>,
