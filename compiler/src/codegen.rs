@@ -590,6 +590,29 @@ impl<'a> Gen<'a> {
         }
     }
 
+    /// A vector whose lane `k` is lane `from(k)` of the concatenation of
+    /// the same-typed vectors `a` and `b`.
+    fn shuffle_lanes(
+        &mut self,
+        a: cranelift_codegen::ir::Value,
+        b: cranelift_codegen::ir::Value,
+        from: impl Fn(usize) -> usize,
+    ) -> cranelift_codegen::ir::Value {
+        let ty = self.b.func.dfg.value_type(a);
+        let size = ty.lane_bits() as usize / 8;
+        let bytes: Vec<u8> = (0..ty.lane_count() as usize)
+            .flat_map(|k| {
+                let lane = from(k);
+                (0..size).map(move |i| (lane * size + i) as u8)
+            })
+            .collect();
+        let mask = self.b.func.dfg.immediates.push(bytes.into());
+        let le = MemFlagsData::new().with_endianness(Endianness::Little);
+        let (a, b) = (self.b.ins().bitcast(types::I8X16, le, a), self.b.ins().bitcast(types::I8X16, le, b));
+        let r = self.b.ins().shuffle(a, b, mask);
+        self.b.ins().bitcast(ty, le, r)
+    }
+
     /// `c ? x : y`, for a truth value `c` (a lane mask in vectorised loops).
     fn select(
         &mut self,
@@ -885,8 +908,16 @@ impl<'a> Gen<'a> {
         let flags = MemFlagsData::trusted();
         if self.vector.is_some() {
             // Consecutive elements; buffers are only element-aligned.
-            let v = self.b.ins().load(vector_of(ty), MemFlagsData::new().with_notrap(), addr, 0);
-            return Cv::real(v);
+            let flags = MemFlagsData::new().with_notrap();
+            let v = self.b.ins().load(vector_of(ty), flags, addr, 0);
+            if !complex {
+                return Cv::real(v);
+            }
+            // Interleaved (re, im) pairs: two vectors, split into even and odd lanes.
+            let w = self.b.ins().load(vector_of(ty), flags, addr, 16);
+            let re = self.shuffle_lanes(v, w, |k| 2 * k);
+            let im = self.shuffle_lanes(v, w, |k| 2 * k + 1);
+            return Cv { re, im: Some(im) };
         }
         let re = self.b.ins().load(ty, flags, addr, 0);
         let im = complex.then(|| self.b.ins().load(ty, flags, addr, ty.bytes() as i32));
@@ -900,7 +931,23 @@ impl<'a> Gen<'a> {
         let size = ty.bytes() as i64 * if complex { 2 } else { 1 };
         let off = self.b.ins().imul_imm_s(index, size);
         let addr = self.b.ins().iadd(self.bufs[buf], off);
-        let flags = if self.vector.is_some() { MemFlagsData::new().with_notrap() } else { MemFlagsData::trusted() };
+        if self.vector.is_some() {
+            let flags = MemFlagsData::new().with_notrap();
+            let Some(im) = v.im.filter(|_| complex) else {
+                self.b.ins().store(flags, v.re, addr, 0);
+                return;
+            };
+            // Back to interleaved (re, im) pairs: lane j of the pair of
+            // output vectors is lane j/2 of re (even j) or of im (odd j).
+            let lanes = (16 / ty.bytes()) as usize;
+            let pick = |j: usize| if j % 2 == 0 { j / 2 } else { lanes + j / 2 };
+            let first = self.shuffle_lanes(v.re, im, pick);
+            let second = self.shuffle_lanes(v.re, im, |k| pick(k + lanes));
+            self.b.ins().store(flags, first, addr, 0);
+            self.b.ins().store(flags, second, addr, 16);
+            return;
+        }
+        let flags = MemFlagsData::trusted();
         self.b.ins().store(flags, v.re, addr, 0);
         if complex {
             let im = v.im.expect("complex value has an imaginary part");
@@ -933,31 +980,36 @@ impl<'a> Gen<'a> {
             let lanes = (16 / lane.bytes()) as i64;
             let end = len - len % lanes;
             if end > 0 {
-                // Vectorised reductions are real and accumulate in f64x2:
-                // f32x4 loops keep two accumulators (lanes 0–1 and 2–3),
-                // the second in the slot of the imaginary part.
+                // Vectorised reductions accumulate in f64x2: complex ones
+                // (f64 loops only) in two, re and im; real f32x4 ones in
+                // two as well, lanes 0–1 and 2–3, the second in the slot of
+                // the imaginary part.
                 let init: Vec<_> = accs
                     .iter()
-                    .map(|&(re, _)| {
+                    .map(|&(re, im)| {
                         let v = self.b.ins().splat(types::F64X2, re);
-                        (v, (lane == types::F32).then_some(v))
+                        let second = match im {
+                            Some(im) => Some(self.b.ins().splat(types::F64X2, im)),
+                            None => (lane == types::F32).then_some(v),
+                        };
+                        (v, second)
                     })
                     .collect();
                 self.vector = Some(lane);
                 let out = self.emit_loop_range(l, (0, end), lanes, &init);
                 self.vector = None;
-                accs = out?
-                    .into_iter()
-                    .zip(&reductions)
-                    .map(|((v, high), &(_, r, _))| {
-                        let v = match high {
-                            Some(h) => self.reduce_step(r, v, h),
-                            None => v,
-                        };
-                        let (a, b) = (self.b.ins().extractlane(v, 0), self.b.ins().extractlane(v, 1));
-                        (self.reduce_step(r, a, b), None)
-                    })
-                    .collect();
+                let out = out?;
+                accs = Vec::new();
+                for ((v, second), &(_, r, complex)) in out.into_iter().zip(&reductions) {
+                    accs.push(match second {
+                        Some(im) if complex => (self.horizontal(r, v), Some(self.horizontal(r, im))),
+                        Some(high) => {
+                            let v = self.reduce_step(r, v, high);
+                            (self.horizontal(r, v), None)
+                        }
+                        None => (self.horizontal(r, v), None),
+                    });
+                }
                 start = end;
             }
         }
@@ -1016,7 +1068,7 @@ impl<'a> Gen<'a> {
                 let (_, re_var, im_var) = *accs.iter().find(|(k, ..)| *k == m).expect("accumulator declared");
                 let acc = self.b.use_var(re_var);
                 if self.vector == Some(types::F32) {
-                    // f32x4 → two f64x2 halves, into the two accumulators.
+                    // f32x4 (real) → two f64x2 halves, into the two accumulators.
                     let iv = im_var.expect("f32x4 reductions have two accumulators");
                     let (low, high) = self.promote_halves(x.re);
                     let next = self.reduce_step(r, acc, low);
@@ -1077,6 +1129,12 @@ impl<'a> Gen<'a> {
         }
     }
 
+    /// Reduction `r` over the two lanes of an f64x2.
+    fn horizontal(&mut self, r: Reduce, v: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
+        let (a, b) = (self.b.ins().extractlane(v, 0), self.b.ins().extractlane(v, 1));
+        self.reduce_step(r, a, b)
+    }
+
     /// Lanes 0–1 and 2–3 of an f32x4, each promoted to an f64x2.
     fn promote_halves(&mut self, x: cranelift_codegen::ir::Value) -> (cranelift_codegen::ir::Value, cranelift_codegen::ir::Value) {
         let le = MemFlagsData::new().with_endianness(Endianness::Little);
@@ -1091,18 +1149,22 @@ impl<'a> Gen<'a> {
 
     /// The lane type loop `l` can be vectorised in (128-bit vectors: f64x2
     /// or f32x4), or `None` to keep it scalar. Vectorised loops hold real
-    /// values and truth values of one float type only, computed by
-    /// arithmetic, comparisons, selects, `sqrt`, `abs`, `min`/`max` and
-    /// small integer powers (no library or inline-math calls, no complex
-    /// numbers), reading buffers of that type. Real reductions accumulate
-    /// in f64x2 (two accumulators for f32x4).
+    /// and complex values and truth values of one float type only,
+    /// computed by arithmetic, comparisons, selects, `sqrt`, `abs`,
+    /// `min`/`max`, complex parts and small integer powers (no library or
+    /// inline-math calls), reading buffers of that type (complex ones are
+    /// de-interleaved). Reductions accumulate in f64x2: two accumulators
+    /// for real f32x4 ones; complex reductions only in f64.
     fn vector_lane(&self, l: usize) -> Option<Type> {
         let (epoch, _, ref members) = self.sched.loops[l];
         let lane = self.ty_of(*members.first()?);
         let mut seen = std::collections::HashSet::new();
         for &m in members {
             let ok = match self.func.insts[m].op {
-                Op::Reduce(_, a) => self.vectorisable(a.index(), lane, epoch, &mut seen),
+                // f32x4 reductions use the imaginary accumulator for lanes 2–3.
+                Op::Reduce(_, a) => {
+                    (lane == types::F64 || self.func.ty(a).elem != Elem::Complex) && self.vectorisable(a.index(), lane, epoch, &mut seen)
+                }
                 _ => {
                     self.vectorisable(m, lane, epoch, &mut seen) && self.sched.stored.get(&m).is_none_or(|&buf| self.buffer_ty(buf) == lane)
                 }
@@ -1122,9 +1184,9 @@ impl<'a> Gen<'a> {
         }
         let inst = self.func.insts[i];
         if inst.ty.shape == Shape::Scalar {
-            return inst.ty.elem == Elem::Real;
+            return inst.ty.elem != Elem::Bool;
         }
-        if inst.ty.elem == Elem::Complex || self.ty_of(i) != lane {
+        if self.ty_of(i) != lane {
             return false;
         }
         let buffer_ok = |buf: usize| self.buffer_ty(buf) == lane;
@@ -1136,8 +1198,14 @@ impl<'a> Gen<'a> {
             Op::Table(t) => buffer_ok(self.table_buffer(t)),
             Op::Dft(..) | Op::Tensor(..) => buffer_ok(self.sched.stored[&i]),
             _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < epoch => buffer_ok(self.sched.stored[&i]),
-            Op::Unary(u, _) => matches!(u, UnOp::Neg | UnOp::Sqrt | UnOp::Abs | UnOp::Sign | UnOp::Re) && operands_ok(),
-            Op::Binary(op, ..) => !matches!(op, BinOp::Pow | BinOp::Atan2 | BinOp::Complex) && operands_ok(),
+            Op::Unary(u, _) => {
+                let inline = matches!(
+                    u,
+                    UnOp::Neg | UnOp::Sqrt | UnOp::Abs | UnOp::Sign | UnOp::Re | UnOp::Im | UnOp::Conj | UnOp::Abs2 | UnOp::ToComplex
+                );
+                inline && operands_ok()
+            }
+            Op::Binary(op, ..) => !matches!(op, BinOp::Pow | BinOp::Atan2) && operands_ok(),
             Op::PowConst(_, bits) => {
                 let c = f64::from_bits(bits);
                 ((c == c.trunc() && c.abs() <= 16.0) || c == 0.5) && operands_ok()
@@ -1158,8 +1226,8 @@ impl<'a> Gen<'a> {
             let x = self.vals[&i];
             return Ok(match self.vector {
                 Some(lane) => {
-                    let x = self.cast(x.re, lane);
-                    Cv::real(self.splat(x))
+                    let x = self.cast_cv(x, lane);
+                    Cv { re: self.splat(x.re), im: x.im.map(|im| self.splat(im)) }
                 }
                 None => x,
             });
@@ -1169,7 +1237,7 @@ impl<'a> Gen<'a> {
             Op::Broadcast(a, _) => {
                 let x = self.vals[&a.index()];
                 let x = self.cast_cv(x, ty);
-                Cv { re: self.splat(x.re), im: x.im }
+                Cv { re: self.splat(x.re), im: x.im.map(|im| self.splat(im)) }
             }
             Op::GridCoord(g) => {
                 let grid = &self.func.grids[g.0 as usize];
