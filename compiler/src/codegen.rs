@@ -940,7 +940,7 @@ impl<'a> Gen<'a> {
             // Back to interleaved (re, im) pairs: lane j of the pair of
             // output vectors is lane j/2 of re (even j) or of im (odd j).
             let lanes = (16 / ty.bytes()) as usize;
-            let pick = |j: usize| if j % 2 == 0 { j / 2 } else { lanes + j / 2 };
+            let pick = |j: usize| if j.is_multiple_of(2) { j / 2 } else { lanes + j / 2 };
             let first = self.shuffle_lanes(v.re, im, pick);
             let second = self.shuffle_lanes(v.re, im, |k| pick(k + lanes));
             self.b.ins().store(flags, first, addr, 0);
