@@ -424,7 +424,7 @@ fn vectorised_complex_loops_match_interpreter() {
         run.param("a", 0.7).unwrap().input_complex("z", &z).unwrap();
         let out = run.value_and_grad().unwrap();
         let f = scene.ir();
-        let r = interp::interpret(f, &[0.7], &[z.clone()]);
+        let r = interp::interpret(f, &[0.7], std::slice::from_ref(&z));
         let want = r.output(f, "loss").unwrap()[0].re;
         assert!(rel(out.scalar("loss").unwrap(), want) < tol, "{precision:?}: loss {} vs {want}", out.scalar("loss").unwrap());
         let (g, w) = (out.grad("loss", "a").unwrap(), r.grad(f, "loss", "a").unwrap());
