@@ -1151,8 +1151,8 @@ impl<'a> Gen<'a> {
     /// or f32x4), or `None` to keep it scalar. Vectorised loops hold real
     /// and complex values and truth values of one float type only,
     /// computed by arithmetic, comparisons, selects, `sqrt`, `abs`,
-    /// `min`/`max`, complex parts and small integer powers (no library or
-    /// inline-math calls), reading buffers of that type (complex ones are
+    /// `min`/`max`, complex parts, small integer powers and (in f64) sin,
+    /// cos and `cis` (no library calls), reading buffers of that type (complex ones are
     /// de-interleaved). Reductions accumulate in f64x2: two accumulators
     /// for real f32x4 ones; complex reductions only in f64.
     fn vector_lane(&self, l: usize) -> Option<Type> {
@@ -1203,7 +1203,10 @@ impl<'a> Gen<'a> {
                     u,
                     UnOp::Neg | UnOp::Sqrt | UnOp::Abs | UnOp::Sign | UnOp::Re | UnOp::Im | UnOp::Conj | UnOp::Abs2 | UnOp::ToComplex
                 );
-                inline && operands_ok()
+                // sin and cos are always inline in f64 (`Gen::inline_math`),
+                // and the inline code takes f64x2.
+                let sincos = lane == types::F64 && matches!(u, UnOp::Sin | UnOp::Cos | UnOp::Cis);
+                (inline || sincos) && operands_ok()
             }
             Op::Binary(op, ..) => !matches!(op, BinOp::Pow | BinOp::Atan2) && operands_ok(),
             Op::PowConst(_, bits) => {

@@ -132,7 +132,7 @@
 #![allow(clippy::excessive_precision)]
 
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
-use cranelift_codegen::ir::{types, Block, BlockArg, InstBuilder, MemFlagsData, Type, Value};
+use cranelift_codegen::ir::{types, Block, BlockArg, Endianness, InstBuilder, MemFlagsData, Type, Value};
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::FunctionBuilder;
 
@@ -256,15 +256,65 @@ const KCBRT: [f64; 5] = [
 
 // ---------------------------------------------------------------- IR helpers
 
-/// A FunctionBuilder plus the FMA decision, with small arithmetic helpers (all f64).
+/// A FunctionBuilder plus the FMA decision, with small arithmetic helpers
+/// (all f64, or f64x2 when `vector`: constants are splatted and integer
+/// work is done in i64x2 lanes).
 struct Ir<'a, 'f> {
     b: &'a mut FunctionBuilder<'f>,
     fma: bool,
+    vector: bool,
 }
 
 impl Ir<'_, '_> {
     fn c(&mut self, v: f64) -> Value {
-        self.b.ins().f64const(v)
+        let c = self.b.ins().f64const(v);
+        if self.vector {
+            self.b.ins().splat(types::F64X2, c)
+        } else {
+            c
+        }
+    }
+    /// The integer `k` (i64, or i64x2 in every lane).
+    fn ic(&mut self, k: i64) -> Value {
+        let c = self.b.ins().iconst(types::I64, k);
+        if self.vector {
+            self.b.ins().splat(types::I64X2, c)
+        } else {
+            c
+        }
+    }
+    fn iadd_c(&mut self, x: Value, k: i64) -> Value {
+        let k = self.ic(k);
+        self.b.ins().iadd(x, k)
+    }
+    fn band_c(&mut self, x: Value, k: i64) -> Value {
+        let k = self.ic(k);
+        self.b.ins().band(x, k)
+    }
+    fn shl(&mut self, x: Value, by: i64) -> Value {
+        let by = self.b.ins().iconst(types::I32, by);
+        self.b.ins().ishl(x, by)
+    }
+    /// `cond ? x : y` for a truth value from `fcmp` (a lane mask when vector).
+    fn select(&mut self, cond: Value, x: Value, y: Value) -> Value {
+        if self.vector {
+            let le = MemFlagsData::new().with_endianness(Endianness::Little);
+            let mask = self.b.ins().bitcast(types::F64X2, le, cond);
+            self.b.ins().bitselect(mask, x, y)
+        } else {
+            self.b.ins().select(cond, x, y)
+        }
+    }
+    /// `x` where bit 0 of the integer `n` is set, else `y`.
+    fn select_odd(&mut self, n: Value, x: Value, y: Value) -> Value {
+        let odd = self.band_c(n, 1);
+        if self.vector {
+            let one = self.ic(1);
+            let mask = self.b.ins().icmp(IntCC::Equal, odd, one);
+            self.select(mask, x, y)
+        } else {
+            self.b.ins().select(odd, x, y)
+        }
     }
     fn add(&mut self, x: Value, y: Value) -> Value {
         self.b.ins().fadd(x, y)
@@ -302,10 +352,18 @@ impl Ir<'_, '_> {
         acc
     }
     fn bits(&mut self, x: Value) -> Value {
-        self.b.ins().bitcast(types::I64, MemFlagsData::new(), x)
+        if self.vector {
+            self.b.ins().bitcast(types::I64X2, MemFlagsData::new().with_endianness(Endianness::Little), x)
+        } else {
+            self.b.ins().bitcast(types::I64, MemFlagsData::new(), x)
+        }
     }
     fn float(&mut self, i: Value) -> Value {
-        self.b.ins().bitcast(types::F64, MemFlagsData::new(), i)
+        if self.vector {
+            self.b.ins().bitcast(types::F64X2, MemFlagsData::new().with_endianness(Endianness::Little), i)
+        } else {
+            self.b.ins().bitcast(types::F64, MemFlagsData::new(), i)
+        }
     }
     /// Rounds `x·scale` to the nearest integer: (as f64, as i64). |x·scale| < 2^51.
     fn round_mul(&mut self, x: Value, scale: f64) -> (Value, Value) {
@@ -314,13 +372,13 @@ impl Ir<'_, '_> {
         let t = self.mla(x, s, m);
         let kf = self.sub(t, m);
         let tb = self.bits(t);
-        let ki = self.b.ins().iadd_imm_s(tb, -(MAGIC.to_bits() as i64));
+        let ki = self.iadd_c(tb, -(MAGIC.to_bits() as i64));
         (kf, ki)
     }
     /// `x` with its sign flipped where bit 1 of the integer `n` is set.
     fn flip_if_bit1(&mut self, x: Value, n: Value) -> Value {
-        let bit = self.b.ins().band_imm_s(n, 2);
-        let sign = self.b.ins().ishl_imm_s(bit, 62);
+        let bit = self.band_c(n, 2);
+        let sign = self.shl(bit, 62);
         let xb = self.bits(x);
         let r = self.b.ins().bxor(xb, sign);
         self.float(r)
@@ -435,13 +493,12 @@ fn sincos_kernel(e: &mut Ir, x: Value, mode: MathMode) -> (Value, Value) {
     // The reduction and polynomials turn −0 into +0; sin(±0) = ±0.
     let zero = e.c(0.0);
     let is0 = e.b.ins().fcmp(FloatCC::Equal, x, zero);
-    let s = e.b.ins().select(is0, x, s);
+    let s = e.select(is0, x, s);
     // Quadrant n mod 4: 0 → (s, c), 1 → (c, −s), 2 → (−s, −c), 3 → (−c, s).
-    let odd = e.b.ins().band_imm_s(n, 1);
-    let sr = e.b.ins().select(odd, c, s);
-    let cr = e.b.ins().select(odd, s, c);
+    let sr = e.select_odd(n, c, s);
+    let cr = e.select_odd(n, s, c);
     let sr = e.flip_if_bit1(sr, n);
-    let n1 = e.b.ins().iadd_imm_s(n, 1);
+    let n1 = e.iadd_c(n, 1);
     let cr = e.flip_if_bit1(cr, n1);
     (sr, cr)
 }
@@ -629,20 +686,26 @@ impl MathEmitter {
         ok: impl FnOnce(&mut Ir, &[Value]) -> Value,
         fast: impl FnOnce(&mut Ir, &[Value]) -> Vec<Value>,
     ) -> Vec<Value> {
+        // f64x2 arguments: the fast path runs on both lanes when both are in
+        // its domain, the slow path calls libm lane by lane.
+        let arg_ty = b.func.dfg.value_type(args[0]);
+        let vector = arg_ty.is_vector();
+        assert!(!vector || arg_ty == types::F64X2, "vector math is f64x2 only, not {arg_ty}");
         let wide: Vec<Value> = args.iter().map(|&a| self.widen(b, a)).collect();
-        let cond = ok(&mut Ir { b, fma: self.fma }, &wide);
+        let cond = ok(&mut Ir { b, fma: self.fma, vector }, &wide);
+        let cond = if vector { b.ins().vall_true(cond) } else { cond };
         let fast_blk = b.create_block();
         let slow_blk = b.create_block();
         let merge = b.create_block();
         let nret = if name == "sincos" { 2 } else { 1 };
         for _ in 0..nret {
-            b.append_block_param(merge, self.ty);
+            b.append_block_param(merge, if vector { arg_ty } else { self.ty });
         }
         b.ins().brif(cond, fast_blk, &[], slow_blk, &[]);
         b.seal_block(fast_blk);
         b.seal_block(slow_blk);
         b.switch_to_block(fast_blk);
-        let res = fast(&mut Ir { b, fma: self.fma }, &wide);
+        let res = fast(&mut Ir { b, fma: self.fma, vector }, &wide);
         let res: Vec<BlockArg> = res.into_iter().map(|v| BlockArg::Value(self.narrow(b, v))).collect();
         b.ins().jump(merge, &res);
         self.emit_slow(b, slow_blk, merge, name, args, slow);
@@ -654,7 +717,24 @@ impl MathEmitter {
     fn emit_slow(&self, b: &mut FunctionBuilder, blk: Block, merge: Block, name: &'static str, args: &[Value], slow: &mut SlowPath) {
         b.switch_to_block(blk);
         b.set_cold_block(blk);
-        let r: Vec<BlockArg> = slow(b, name, args).into_iter().map(BlockArg::Value).collect();
+        let ty = b.func.dfg.value_type(args[0]);
+        let r = if ty.is_vector() {
+            let mut out: Vec<Value> = Vec::new();
+            for lane in 0..ty.lane_count() as u8 {
+                let xs: Vec<Value> = args.iter().map(|&a| b.ins().extractlane(a, lane)).collect();
+                let r = slow(b, name, &xs);
+                if out.is_empty() {
+                    out = vec![args[0]; r.len()];
+                }
+                for (o, v) in out.iter_mut().zip(r) {
+                    *o = b.ins().insertlane(*o, v, lane);
+                }
+            }
+            out
+        } else {
+            slow(b, name, args)
+        };
+        let r: Vec<BlockArg> = r.into_iter().map(BlockArg::Value).collect();
         b.ins().jump(merge, &r);
     }
 
@@ -750,7 +830,7 @@ impl MathEmitter {
         let merge = b.create_block();
         b.append_block_param(merge, self.ty);
         let ok = {
-            let mut e = Ir { b, fma: self.fma };
+            let mut e = Ir { b, fma: self.fma, vector: false };
             let xok = e.is_pos_normal(xw);
             let yok = e.abs_lt(yw, f64::INFINITY);
             e.b.ins().band(xok, yok)
@@ -759,7 +839,7 @@ impl MathEmitter {
         b.seal_block(log_blk);
         b.switch_to_block(log_blk);
         let (t, tok) = {
-            let mut e = Ir { b, fma: self.fma };
+            let mut e = Ir { b, fma: self.fma, vector: false };
             // log(x) errors are multiplied by y: use the next better log.
             // (f32 only needs |error of y·log x| ≲ 1e-8, which the Fast log gives.)
             let ltier = if tier == MathMode::Fast && !self.f32() { MathMode::Exact } else { MathMode::Fast };
@@ -772,7 +852,7 @@ impl MathEmitter {
         b.seal_block(exp_blk);
         b.seal_block(slow_blk);
         b.switch_to_block(exp_blk);
-        let r = exp_kernel(&mut Ir { b, fma: self.fma }, t, tier);
+        let r = exp_kernel(&mut Ir { b, fma: self.fma, vector: false }, t, tier);
         let r = self.narrow(b, r);
         b.ins().jump(merge, &[BlockArg::Value(r)]);
         self.emit_slow(b, slow_blk, merge, "pow", &[x, y], slow);
