@@ -32,6 +32,11 @@
 //!   `Fast`/`Fastest` (and f32 in every mode) compute `exp(y·log x)` for
 //!   positive normal finite x, finite y and |y·log x| < 708, libm otherwise.
 //!
+//! sin, cos and sincos also take f64x2 arguments (vectorised loops): the
+//! same kernels run on both lanes, integer steps in i64x2, the quadrant
+//! picked by lane masks; the fast path is taken when both lanes are in its
+//! domain, otherwise the cold path calls libm lane by lane.
+//!
 //! f32 (`ty == F32`) promotes to f64, evaluates the f64 code (`Fast`
 //! kernels for `Exact`, `Fastest` kernels otherwise) and demotes: scalar
 //! f64 arithmetic costs the same as f32 on x86-64, f32 subnormals become

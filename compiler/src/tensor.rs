@@ -110,7 +110,19 @@ scalar!(f32, sgemm, SCRATCH_F32);
 /// are a caller bug and panic on indexing rather than read out of bounds.
 pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
     let u = |x: u32| x as usize;
-    out.fill(T::zero());
+    // Ops that accumulate into `out` start from zeros; the others write
+    // every element.
+    if matches!(
+        op,
+        TensorOp::MatTVec { .. }
+            | TensorOp::Outer { .. }
+            | TensorOp::ConvBackData(_)
+            | TensorOp::PoolScatter(_)
+            | TensorOp::PoolAvg(_)
+            | TensorOp::PoolAvgBack(_)
+    ) {
+        out.fill(T::zero());
+    }
     match op {
         TensorOp::MatVec { m, k } => {
             let (m, k) = (u(m), u(k));
