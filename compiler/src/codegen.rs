@@ -1151,8 +1151,8 @@ impl<'a> Gen<'a> {
     /// or f32x4), or `None` to keep it scalar. Vectorised loops hold real
     /// and complex values and truth values of one float type only,
     /// computed by arithmetic, comparisons, selects, `sqrt`, `abs`,
-    /// `min`/`max`, complex parts, small integer powers and (in f64) sin,
-    /// cos and `cis` (no library calls), reading buffers of that type (complex ones are
+    /// `min`/`max`, complex parts, small integer powers and, in f64, sin,
+    /// cos, `cis` and (`fast`/`fastest`) exp (no library calls), reading buffers of that type (complex ones are
     /// de-interleaved). Reductions accumulate in f64x2: two accumulators
     /// for real f32x4 ones; complex reductions only in f64.
     fn vector_lane(&self, l: usize) -> Option<Type> {
@@ -1203,10 +1203,15 @@ impl<'a> Gen<'a> {
                     u,
                     UnOp::Neg | UnOp::Sqrt | UnOp::Abs | UnOp::Sign | UnOp::Re | UnOp::Im | UnOp::Conj | UnOp::Abs2 | UnOp::ToComplex
                 );
-                // sin and cos are always inline in f64 (`Gen::inline_math`),
-                // and the inline code takes f64x2.
-                let sincos = lane == types::F64 && matches!(u, UnOp::Sin | UnOp::Cos | UnOp::Cis);
-                (inline || sincos) && operands_ok()
+                // In f64, sin and cos are always inline (`Gen::inline_math`)
+                // and exp is in `fast`/`fastest`; the inline code takes f64x2.
+                let inline_exp = self.func.math != MathMode::Exact;
+                let f64_math = match u {
+                    UnOp::Sin | UnOp::Cos | UnOp::Cis => true,
+                    UnOp::Exp => inline_exp,
+                    _ => false,
+                };
+                (inline || (lane == types::F64 && f64_math)) && operands_ok()
             }
             Op::Binary(op, ..) => !matches!(op, BinOp::Pow | BinOp::Atan2) && operands_ok(),
             Op::PowConst(_, bits) => {

@@ -32,8 +32,8 @@
 //!   `Fast`/`Fastest` (and f32 in every mode) compute `exp(y·log x)` for
 //!   positive normal finite x, finite y and |y·log x| < 708, libm otherwise.
 //!
-//! sin, cos and sincos also take f64x2 arguments (vectorised loops): the
-//! same kernels run on both lanes, integer steps in i64x2, the quadrant
+//! sin, cos, sincos and exp also take f64x2 arguments (vectorised loops):
+//! the same kernels run on both lanes, integer steps in i64x2, the quadrant
 //! picked by lane masks; the fast path is taken when both lanes are in its
 //! domain, otherwise the cold path calls libm lane by lane.
 //!
@@ -539,8 +539,8 @@ fn exp_kernel(e: &mut Ir, x: Value, mode: MathMode) -> Value {
             e.add(one, q)
         }
     };
-    let bias = e.b.ins().iadd_imm_s(k, 1023);
-    let sb = e.b.ins().ishl_imm_s(bias, 52);
+    let bias = e.iadd_c(k, 1023);
+    let sb = e.shl(bias, 52);
     let scale = e.float(sb);
     e.mul(y, scale)
 }

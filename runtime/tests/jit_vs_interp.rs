@@ -504,3 +504,35 @@ fn vectorised_sincos_matches_libm_in_every_lane() {
         }
     }
 }
+
+/// In `fast` and `fastest`, exp is inline and vectorised too (f64x2):
+/// every lane agrees with glibc's exp within the mode's tolerance, and
+/// arguments outside the inline domain (|x| ≥ 708, up to the largest
+/// finite result and down to subnormals and 0) take libm lane by lane.
+#[test]
+fn vectorised_exp_matches_libm_in_fast_modes() {
+    let src = "scene e {
+        grid g = index(13)
+        input x: real[g] = 0.0
+        output ex = exp(x)
+        output ez = exp(complex(0.01 * x, x))
+    }";
+    let x: Vec<f64> = vec![0.0, -0.0, 1e-300, -3.7, 12.5, 707.0, -707.5, 709.0, 0.3, -745.0, -800.0, -1e3, 2.5];
+    let model = Model::from_source("e.gw", src).unwrap();
+    for (math, tol) in [(MathMode::Fast, 1e-12), (MathMode::Fastest, 1e-7)] {
+        let scene = model.scene_with(None, Options { math: Some(math), ..Default::default() }).unwrap();
+        let clif = &scene.forward_kernel().clif;
+        assert!(clif.contains("f64x2") && clif.contains("vall_true"), "{math:?}: exp not vectorised");
+        let mut run = scene.bind();
+        run.input_real("x", &x).unwrap();
+        let out = run.forward().unwrap();
+        let (Ok(Value::RealArray(ex)), Ok(Value::ComplexArray(ez))) = (out.value("ex"), out.value("ez")) else { panic!("array outputs") };
+        for (k, &xk) in x.iter().enumerate() {
+            let want = xk.exp();
+            let ok = ex[k] == want || (ex[k] - want).abs() <= tol * want;
+            assert!(ok, "{math:?}: exp({xk:e}) = {:e} vs {want:e}", ex[k]);
+            let wz = num_complex::Complex64::new(0.01 * xk, xk).exp();
+            assert!((ez[k] - wz).norm() <= 2.0 * tol * wz.norm(), "{math:?}: exp(0.01x + ix) at {xk:e} = {} vs {wz}", ez[k]);
+        }
+    }
+}
