@@ -26,12 +26,10 @@
 
 use crate::dft::{gwml_dft_f32, gwml_dft_f64, DftPlan};
 use crate::ir::*;
-use crate::mathlib::{MathEmitter, SlowPath};
+use crate::mathlib::{self, MathEmitter, SlowPath};
 use crate::tensor::{gwml_tensor_f32, gwml_tensor_f64};
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
-use cranelift_codegen::ir::{
-    types, AbiParam, Endianness, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type,
-};
+use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlotData, StackSlotKind, Type};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_jit::{JITBuilder, JITModule};
@@ -581,6 +579,13 @@ impl<'a> Gen<'a> {
         self.splat(c)
     }
 
+    /// `x` (converted to float type `ty`) in every lane when emitting a
+    /// vectorised loop, else `x` converted.
+    fn splat_cv(&mut self, x: Cv, ty: Type) -> Cv {
+        let x = self.cast_cv(x, ty);
+        Cv { re: self.splat(x.re), im: x.im.map(|im| self.splat(im)) }
+    }
+
     /// `x` in every lane when emitting a vectorised loop, else `x`.
     fn splat(&mut self, x: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
         let ty = self.b.func.dfg.value_type(x);
@@ -607,10 +612,9 @@ impl<'a> Gen<'a> {
             })
             .collect();
         let mask = self.b.func.dfg.immediates.push(bytes.into());
-        let le = MemFlagsData::new().with_endianness(Endianness::Little);
-        let (a, b) = (self.b.ins().bitcast(types::I8X16, le, a), self.b.ins().bitcast(types::I8X16, le, b));
+        let (a, b) = (mathlib::bitcast(&mut self.b, types::I8X16, a), mathlib::bitcast(&mut self.b, types::I8X16, b));
         let r = self.b.ins().shuffle(a, b, mask);
-        self.b.ins().bitcast(ty, le, r)
+        mathlib::bitcast(&mut self.b, ty, r)
     }
 
     /// `c ? x : y`, for a truth value `c` (a lane mask in vectorised loops).
@@ -620,14 +624,7 @@ impl<'a> Gen<'a> {
         x: cranelift_codegen::ir::Value,
         y: cranelift_codegen::ir::Value,
     ) -> cranelift_codegen::ir::Value {
-        let ty = self.b.func.dfg.value_type(x);
-        if ty.is_vector() {
-            let flags = MemFlagsData::new().with_endianness(Endianness::Little);
-            let mask = self.b.ins().bitcast(ty, flags, c);
-            self.b.ins().bitselect(mask, x, y)
-        } else {
-            self.b.ins().select(c, x, y)
-        }
+        mathlib::select(&mut self.b, c, x, y)
     }
 
     fn import(&mut self, name: &'static str) -> Result<FuncRef, CodegenError> {
@@ -673,7 +670,12 @@ impl<'a> Gen<'a> {
     /// them; exp/log/pow are only faster at reduced accuracy. In f32, glibc's
     /// float functions are faster than the inline code except cbrt.
     fn inline_math(&self, name: &str) -> bool {
-        match (self.func.math, self.f32()) {
+        self.inline_math_in(name, self.f32())
+    }
+
+    /// Whether `name` is emitted inline in f32 (`f32`) or f64 code.
+    fn inline_math_in(&self, name: &str, f32: bool) -> bool {
+        match (self.func.math, f32) {
             (MathMode::Exact, false) => matches!(name, "sin" | "cos" | "sincos" | "cbrt"),
             (MathMode::Exact, true) => false,
             (_, false) => matches!(name, "sin" | "cos" | "sincos" | "cbrt" | "exp" | "log" | "pow"),
@@ -1137,13 +1139,8 @@ impl<'a> Gen<'a> {
 
     /// Lanes 0–1 and 2–3 of an f32x4, each promoted to an f64x2.
     fn promote_halves(&mut self, x: cranelift_codegen::ir::Value) -> (cranelift_codegen::ir::Value, cranelift_codegen::ir::Value) {
-        let le = MemFlagsData::new().with_endianness(Endianness::Little);
         let low = self.b.ins().fvpromote_low(x);
-        let bytes = self.b.ins().bitcast(types::I8X16, le, x);
-        let swap: Vec<u8> = (8..16).chain(0..8).collect();
-        let mask = self.b.func.dfg.immediates.push(swap.into());
-        let swapped = self.b.ins().shuffle(bytes, bytes, mask);
-        let swapped = self.b.ins().bitcast(types::F32X4, le, swapped);
+        let swapped = self.shuffle_lanes(x, x, |k| (k + 2) % 4);
         (low, self.b.ins().fvpromote_low(swapped))
     }
 
@@ -1152,8 +1149,8 @@ impl<'a> Gen<'a> {
     /// and complex values and truth values of one float type only,
     /// computed by arithmetic, comparisons, selects, `sqrt`, `abs`,
     /// `min`/`max`, complex parts, small integer powers and, in f64, sin,
-    /// cos, `cis` and (`fast`/`fastest`) exp (no library calls), reading buffers of that type (complex ones are
-    /// de-interleaved). Reductions accumulate in f64x2: two accumulators
+    /// cos, `cis` and (`fast`/`fastest`) exp (no library calls), reading
+    /// buffers of that type (complex ones are de-interleaved). Reductions accumulate in f64x2: two accumulators
     /// for real f32x4 ones; complex reductions only in f64.
     fn vector_lane(&self, l: usize) -> Option<Type> {
         let (epoch, _, ref members) = self.sched.loops[l];
@@ -1203,21 +1200,20 @@ impl<'a> Gen<'a> {
                     u,
                     UnOp::Neg | UnOp::Sqrt | UnOp::Abs | UnOp::Sign | UnOp::Re | UnOp::Im | UnOp::Conj | UnOp::Abs2 | UnOp::ToComplex
                 );
-                // In f64, sin and cos are always inline (`Gen::inline_math`)
-                // and exp is in `fast`/`fastest`; the inline code takes f64x2.
-                let inline_exp = self.func.math != MathMode::Exact;
-                let f64_math = match u {
-                    UnOp::Sin | UnOp::Cos | UnOp::Cis => true,
-                    UnOp::Exp => inline_exp,
+                // The inline f64 sin/cos/sincos and exp take f64x2 (a
+                // complex exp needs both exp and sincos).
+                let f64_math = |name| lane == types::F64 && self.inline_math_in(name, false);
+                let math = match u {
+                    UnOp::Sin => f64_math("sin"),
+                    UnOp::Cos => f64_math("cos"),
+                    UnOp::Cis => f64_math("sincos"),
+                    UnOp::Exp => f64_math("exp") && f64_math("sincos"),
                     _ => false,
                 };
-                (inline || (lane == types::F64 && f64_math)) && operands_ok()
+                (inline || math) && operands_ok()
             }
             Op::Binary(op, ..) => !matches!(op, BinOp::Pow | BinOp::Atan2) && operands_ok(),
-            Op::PowConst(_, bits) => {
-                let c = f64::from_bits(bits);
-                ((c == c.trunc() && c.abs() <= 16.0) || c == 0.5) && operands_ok()
-            }
+            Op::PowConst(_, bits) => pow_const_is_inline(f64::from_bits(bits)) && operands_ok(),
             Op::Select(..) => operands_ok(),
             _ => false,
         }
@@ -1233,10 +1229,7 @@ impl<'a> Gen<'a> {
         if inst.ty.shape == Shape::Scalar {
             let x = self.vals[&i];
             return Ok(match self.vector {
-                Some(lane) => {
-                    let x = self.cast_cv(x, lane);
-                    Cv { re: self.splat(x.re), im: x.im.map(|im| self.splat(im)) }
-                }
+                Some(lane) => self.splat_cv(x, lane),
                 None => x,
             });
         }
@@ -1244,8 +1237,7 @@ impl<'a> Gen<'a> {
         let x = match inst.op {
             Op::Broadcast(a, _) => {
                 let x = self.vals[&a.index()];
-                let x = self.cast_cv(x, ty);
-                Cv { re: self.splat(x.re), im: x.im.map(|im| self.splat(im)) }
+                self.splat_cv(x, ty)
             }
             Op::GridCoord(g) => {
                 let grid = &self.func.grids[g.0 as usize];
@@ -1449,7 +1441,7 @@ impl<'a> Gen<'a> {
     /// `x^c`: repeated multiplication for small integer c, sqrt for ±1/2,
     /// otherwise a call to `pow`.
     fn pow_const(&mut self, x: cranelift_codegen::ir::Value, c: f64) -> Result<cranelift_codegen::ir::Value, CodegenError> {
-        if c == c.trunc() && c.abs() <= 16.0 {
+        if pow_const_is_small_integer(c) {
             let n = c.abs() as u32;
             let mut result: Option<cranelift_codegen::ir::Value> = None;
             let mut base = x;
@@ -1485,13 +1477,23 @@ impl<'a> Gen<'a> {
     }
 }
 
-/// Calls libm's `name` (f64 name) from the inline code's cold path; the
-/// functions were imported beforehand (see [`Gen::math`]).
 /// The 128-bit vector of lane type `ty` (f64x2 or f32x4).
 fn vector_of(ty: Type) -> Type {
     ty.by(16 / ty.bytes()).expect("a 128-bit vector of a float type")
 }
 
+/// `x^c` by repeated multiplication (see [`Gen::pow_const`]).
+fn pow_const_is_small_integer(c: f64) -> bool {
+    c == c.trunc() && c.abs() <= 16.0
+}
+
+/// `x^c` without a `pow` call: repeated multiplication or `sqrt`.
+fn pow_const_is_inline(c: f64) -> bool {
+    pow_const_is_small_integer(c) || c == 0.5
+}
+
+/// Calls libm's `name` (f64 name) from the inline code's cold path; the
+/// functions were imported beforehand (see [`Gen::math`]).
 fn slow_call(
     fb: &mut FunctionBuilder,
     imports: &HashMap<&'static str, FuncRef>,

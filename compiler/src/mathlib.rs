@@ -261,6 +261,25 @@ const KCBRT: [f64; 5] = [
 
 // ---------------------------------------------------------------- IR helpers
 
+/// `x` reinterpreted as `ty` (same size); vector bitcasts state their lane
+/// order (little-endian), as Cranelift requires.
+pub(crate) fn bitcast(b: &mut FunctionBuilder, ty: Type, x: Value) -> Value {
+    let flags = if ty.is_vector() { MemFlagsData::new().with_endianness(Endianness::Little) } else { MemFlagsData::new() };
+    b.ins().bitcast(ty, flags, x)
+}
+
+/// `c ? x : y` for a truth value `c` from `fcmp`/`icmp`: a scalar select,
+/// or for vectors a bitwise select on the lane mask `c`.
+pub(crate) fn select(b: &mut FunctionBuilder, c: Value, x: Value, y: Value) -> Value {
+    let ty = b.func.dfg.value_type(x);
+    if ty.is_vector() {
+        let mask = bitcast(b, ty, c);
+        b.ins().bitselect(mask, x, y)
+    } else {
+        b.ins().select(c, x, y)
+    }
+}
+
 /// A FunctionBuilder plus the FMA decision, with small arithmetic helpers
 /// (all f64, or f64x2 when `vector`: constants are splatted and integer
 /// work is done in i64x2 lanes).
@@ -302,13 +321,7 @@ impl Ir<'_, '_> {
     }
     /// `cond ? x : y` for a truth value from `fcmp` (a lane mask when vector).
     fn select(&mut self, cond: Value, x: Value, y: Value) -> Value {
-        if self.vector {
-            let le = MemFlagsData::new().with_endianness(Endianness::Little);
-            let mask = self.b.ins().bitcast(types::F64X2, le, cond);
-            self.b.ins().bitselect(mask, x, y)
-        } else {
-            self.b.ins().select(cond, x, y)
-        }
+        select(self.b, cond, x, y)
     }
     /// `x` where bit 0 of the integer `n` is set, else `y`.
     fn select_odd(&mut self, n: Value, x: Value, y: Value) -> Value {
@@ -357,18 +370,10 @@ impl Ir<'_, '_> {
         acc
     }
     fn bits(&mut self, x: Value) -> Value {
-        if self.vector {
-            self.b.ins().bitcast(types::I64X2, MemFlagsData::new().with_endianness(Endianness::Little), x)
-        } else {
-            self.b.ins().bitcast(types::I64, MemFlagsData::new(), x)
-        }
+        bitcast(self.b, if self.vector { types::I64X2 } else { types::I64 }, x)
     }
     fn float(&mut self, i: Value) -> Value {
-        if self.vector {
-            self.b.ins().bitcast(types::F64X2, MemFlagsData::new().with_endianness(Endianness::Little), i)
-        } else {
-            self.b.ins().bitcast(types::F64, MemFlagsData::new(), i)
-        }
+        bitcast(self.b, if self.vector { types::F64X2 } else { types::F64 }, i)
     }
     /// Rounds `x·scale` to the nearest integer: (as f64, as i64). |x·scale| < 2^51.
     fn round_mul(&mut self, x: Value, scale: f64) -> (Value, Value) {
