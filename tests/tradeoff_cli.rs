@@ -51,13 +51,28 @@ fn tradeoff_sweeps_math_modes_and_writes_csv_json_and_png() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Strains of 1e-23 over PSDs of 1e-47 overflow f32 (the loss is not
-/// finite): those rows say so, and the f64 rows are still measured.
+/// `exp` of 100 needs its operand at true scale and its result (2.7e43)
+/// is beyond f32's largest value, so no rescaling saves it: f32 fails to
+/// compile, that row says so, and the f64 rows are still measured.
 #[test]
 fn a_failing_setting_is_reported_in_its_row() {
-    let (ok, stdout, stderr) = gwml(&["tradeoff", "examples/taylorf2_tradeoff.gw", "--reps", "2", "--math", "exact"]);
+    let dir = std::env::temp_dir().join(format!("gwml-tradeoff-fail-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("overflow.gw");
+    std::fs::write(
+        &file,
+        "scene s {
+            grid f = frequencies(from: 1 Hz, to: 64 Hz, step: 1 Hz)
+            param a = 1.0
+            output y = log(sum(exp(a * 100.0 * f / 64 Hz)))
+            grad y wrt [a]
+        }",
+    )
+    .unwrap();
+    let (ok, stdout, stderr) = gwml(&["tradeoff", file.to_str().unwrap(), "--reps", "2", "--math", "exact"]);
     assert!(ok, "{stderr}");
     let f32_row = stdout.lines().find(|l| l.contains("| f32 |")).expect("an f32 row");
     assert!(f32_row.contains("failed:") && f32_row.contains("precision: mixed"), "{f32_row}");
     assert!(stdout.lines().any(|l| l.starts_with("| * | f64 | exact |")), "{stdout}");
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -338,7 +338,7 @@ impl<'a> Checker<'a> {
                 }
                 SceneStmt::Output(l) => {
                     if let Some(tv) = self.lookup_let(&mut b, &mut scope, &l.name.node, l.name.span) {
-                        outputs.push(ir::Output { name: l.name.node.clone(), value: tv.v, unit: tv.dim.to_string() });
+                        outputs.push(ir::Output { name: l.name.node.clone(), value: tv.v, unit: tv.dim.to_string(), exponent: 0 });
                     }
                 }
                 _ => {}
@@ -712,7 +712,7 @@ impl<'a> Checker<'a> {
             return None;
         }
         let v = b.coerce(tv.v, ty);
-        b.func.outputs.push(ir::Output { name: "default".into(), value: v, unit: dim.to_string() });
+        b.func.outputs.push(ir::Output { name: "default".into(), value: v, unit: dim.to_string(), exponent: 0 });
         let r = crate::interp::interpret(&b.func, &[], &[]);
         let data = r.values[v.index()].clone();
         if let Some(i) = data.iter().position(|x| !x.re.is_finite() || !x.im.is_finite()) {

@@ -1,7 +1,8 @@
 //! The driver: the stage order, and nothing else.
 //!
 //! parse (+ imports) → resolve modules → check + lower each scene →
-//! prune → adjoint → simplify → (codegen, in [`crate::codegen`]).
+//! prune → adjoint → simplify → specialise → rescale → (codegen, in
+//! [`crate::codegen`]).
 
 use crate::check::{collect_modules, Checker};
 use crate::diagnostics::{render_all, Diagnostic};
@@ -197,9 +198,14 @@ pub fn run_passes(checked: Function) -> ScenePipeline {
     let simplified = passes::simplify(&adjoint);
     times.push(("simplify", t.elapsed()));
     let t = Instant::now();
-    let optimized = passes::specialise(&simplified);
+    let specialised = passes::specialise(&simplified);
     times.push(("specialise", t.elapsed()));
-    for (stage, f) in [("prune", &pruned), ("adjoint", &adjoint), ("simplify", &simplified), ("specialise", &optimized)] {
+    let t = Instant::now();
+    let optimized = passes::rescale(&specialised);
+    times.push(("rescale", t.elapsed()));
+    for (stage, f) in
+        [("prune", &pruned), ("adjoint", &adjoint), ("simplify", &simplified), ("specialise", &specialised), ("rescale", &optimized)]
+    {
         if let Err(e) = f.verify() {
             // A verifier failure is a compiler bug; surface it loudly in debug builds.
             debug_assert!(false, "IR invalid after {stage}: {e}");

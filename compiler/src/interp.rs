@@ -21,9 +21,12 @@ pub struct InterpResult {
 }
 
 impl InterpResult {
-    /// The value of output `name`.
-    pub fn output(&self, func: &Function, name: &str) -> Option<&Tensor> {
-        func.outputs.iter().find(|o| o.name == name).map(|o| &self.values[o.value.index()])
+    /// The value of output `name` (at its true scale: times
+    /// `2^exponent`, see [`Output::exponent`]).
+    pub fn output(&self, func: &Function, name: &str) -> Option<Tensor> {
+        let o = func.outputs.iter().find(|o| o.name == name)?;
+        let k = 2f64.powi(o.exponent);
+        Some(self.values[o.value.index()].iter().map(|z| z * k).collect())
     }
     /// The gradient d`output`/d`param` (per base unit of the param).
     pub fn grad(&self, func: &Function, output: &str, param: &str) -> Option<f64> {

@@ -566,6 +566,9 @@ pub struct Output {
     pub value: Value,
     /// Unit (base units), for display.
     pub unit: String,
+    /// The kernel returns the value times `2^-exponent` (0 unless
+    /// `passes::rescale` scaled it; readers multiply by `2^exponent`).
+    pub exponent: i32,
 }
 
 /// A gradient the scene computes: d output / d param.
@@ -862,7 +865,8 @@ impl fmt::Display for Function {
             let _ = writeln!(s, "  %{i}: {}{mark} = {}", self.fmt_ty(inst.ty), self.fmt_op(&inst.op));
         }
         for o in &self.outputs {
-            let _ = writeln!(s, "  output {} = %{} [{}]", o.name, o.value.0, o.unit);
+            let scaled = if o.exponent == 0 { String::new() } else { format!(" × 2^{}", o.exponent) };
+            let _ = writeln!(s, "  output {} = %{}{scaled} [{}]", o.name, o.value.0, o.unit);
         }
         for g in &self.grads {
             let v = g.value.map(|v| format!("%{}", v.0)).unwrap_or("(not computed)".into());

@@ -141,7 +141,8 @@ impl Scene {
         let mut fwd = pipeline.pruned.clone();
         fwd.grads.clear();
         fwd.input_grads.clear();
-        let forward_ir = gwml_compiler::passes::specialise(&gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd)));
+        let forward_ir =
+            gwml_compiler::passes::specialise_and_rescale(&gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd)));
         let forward = codegen::compile(&forward_ir).map_err(Error::Codegen)?;
         Ok(Scene { pipeline, forward_ir, forward, gradient: OnceLock::new() })
     }
@@ -433,16 +434,22 @@ impl<'s> Run<'s> {
         };
         let mut values = Vec::new();
         for (oi, o) in func.outputs.iter().enumerate() {
+            // Rescaled f32 kernels return outputs times 2^-exponent.
+            let scale = 2f64.powi(o.exponent);
             let v = if func.ty(o.value).shape == Shape::Scalar {
-                read_scalar(o.value)
+                match read_scalar(o.value) {
+                    Value::Real(x) => Value::Real(x * scale),
+                    Value::Complex(z) => Value::Complex(z * scale),
+                    other => other,
+                }
             } else {
                 let k = layout.buffers.iter().position(|b| b.kind == BufferKind::Output(oi)).expect("array outputs have a buffer");
                 let (complex, buf) = &self.scratch[k];
                 let n = layout.buffers[k].len;
                 if *complex {
-                    Value::ComplexArray((0..n).map(|i| C64::new(buf.get(2 * i), buf.get(2 * i + 1))).collect())
+                    Value::ComplexArray((0..n).map(|i| C64::new(buf.get(2 * i), buf.get(2 * i + 1)) * scale).collect())
                 } else {
-                    Value::RealArray((0..n).map(|i| buf.get(i)).collect())
+                    Value::RealArray((0..n).map(|i| buf.get(i) * scale).collect())
                 }
             };
             values.push((o.name.clone(), v));

@@ -6,17 +6,27 @@
 //! - [`simplify`]: rebuild through the folding builder (CSE, constant
 //!   folding, algebraic identities), then prune.
 //! - [`specialise`]: fold what the grid fixes into precomputed tables.
+//! - [`rescale`]: in f32, store values scaled by powers of two so strains
+//!   of 1e-23 and their squares stay inside f32's range.
 
 mod adjoint;
 mod prune;
+mod rescale;
 mod specialise;
 
 pub use adjoint::adjoint;
 pub use prune::prune;
+pub use rescale::rescale;
 pub use specialise::specialise;
 
 use crate::builder::Builder;
 use crate::ir::{Function, Value};
+
+/// The passes between simplification and codegen, in order: [`specialise`],
+/// then [`rescale`] (the driver runs them one by one to time them).
+pub fn specialise_and_rescale(func: &Function) -> Function {
+    rescale(&specialise(func))
+}
 
 /// CSE, constant folding and algebraic simplification, followed by DCE.
 pub fn simplify(func: &Function) -> Function {
