@@ -68,7 +68,8 @@ pub enum Emit {
 pub enum PrecisionArg {
     /// 64-bit.
     F64,
-    /// 32-bit (reductions still accumulate in 64-bit).
+    /// 32-bit (reductions still accumulate in 64-bit; values far outside
+    /// f32's range, such as strains of 1e-23, are stored scaled by powers of two).
     F32,
     /// 32-bit, except phases (what flows into sin, cos, tan or a complex
     /// exp) and reductions, which are 64-bit; `--emit ir` marks them `f64`.

@@ -435,7 +435,9 @@ pub enum Precision {
     /// 64-bit floats everywhere.
     #[default]
     F64,
-    /// 32-bit floats for arithmetic; reductions accumulate in f64.
+    /// 32-bit floats for arithmetic; reductions accumulate in f64; values
+    /// far outside f32's range are stored scaled by powers of two
+    /// (`passes::rescale`).
     F32,
     /// f32, except two kinds of values, which are computed (and kept, in
     /// tables, scratch arrays and outputs) in f64: phases, i.e. every value
