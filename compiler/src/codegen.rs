@@ -689,6 +689,9 @@ impl<'a> Gen<'a> {
         name: &'static str,
         args: &[cranelift_codegen::ir::Value],
     ) -> Result<Vec<cranelift_codegen::ir::Value>, CodegenError> {
+        if self.f32() && args.len() == 1 && !self.inline_math(name) && self.inline_math_in(name, false) {
+            return self.math_in_f64(name, args[0]);
+        }
         if !self.inline_math(name) {
             if name == "sincos" {
                 let (s, c) = self.libm_sincos(args[0])?;
@@ -721,6 +724,43 @@ impl<'a> Gen<'a> {
             "pow" => vec![math.pow(b, args[0], args[1], slow)],
             other => return Err(CodegenError(format!("no inline code for `{other}`"))),
         })
+    }
+
+    /// `name(x)` for an f32 (or f32x4) `x` by the inline f64 code, where
+    /// f32 has none: promoted (an f32x4 as two f64x2 halves), computed,
+    /// and rounded back to f32, so f32 loops with sin, cos, `cis` and (in
+    /// `fast`/`fastest`) exp vectorise, and their tails compute the same.
+    fn math_in_f64(
+        &mut self,
+        name: &'static str,
+        x: cranelift_codegen::ir::Value,
+    ) -> Result<Vec<cranelift_codegen::ir::Value>, CodegenError> {
+        let (ft, vector) = (self.ft, self.vector);
+        let parts = match vector {
+            Some(_) => {
+                let (low, high) = self.promote_halves(x);
+                vec![low, high]
+            }
+            None => vec![self.b.ins().fpromote(types::F64, x)],
+        };
+        self.ft = types::F64;
+        self.vector = vector.map(|_| types::F64);
+        let results: Result<Vec<Vec<_>>, _> = parts.iter().map(|&p| self.math(name, &[p])).collect();
+        (self.ft, self.vector) = (ft, vector);
+        let results = results?;
+        Ok((0..results[0].len())
+            .map(|k| match vector {
+                Some(_) => self.demote_pair(results[0][k], results[1][k]),
+                None => self.b.ins().fdemote(types::F32, results[0][k]),
+            })
+            .collect())
+    }
+
+    /// The f32x4 of two f64x2 halves (lanes 0–1, then 2–3), rounded.
+    fn demote_pair(&mut self, low: cranelift_codegen::ir::Value, high: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
+        let (low, high) = (self.b.ins().fvdemote(low), self.b.ins().fvdemote(high));
+        // Lanes 0–1 of each demoted half.
+        self.shuffle_lanes(low, high, |lane| if lane < 2 { lane } else { lane + 2 })
     }
 
     fn math1(&mut self, name: &'static str, x: cranelift_codegen::ir::Value) -> Result<cranelift_codegen::ir::Value, CodegenError> {
@@ -1156,10 +1196,11 @@ impl<'a> Gen<'a> {
     /// or f32x4), or `None` to keep it scalar. Vectorised loops hold real
     /// and complex values and truth values of one float type only,
     /// computed by arithmetic, comparisons, selects, `sqrt`, `abs`,
-    /// `min`/`max`, complex parts, small integer powers and, in f64, sin,
-    /// cos, `cis` and (`fast`/`fastest`) exp (no library calls), reading
-    /// buffers of that type (complex ones are de-interleaved). Reductions accumulate in f64x2: two accumulators
-    /// for real f32x4 ones; complex reductions only in f64.
+    /// `min`/`max`, complex parts, small integer powers and sin, cos,
+    /// `cis` and (`fast`/`fastest`) exp (no library calls; in f32 through
+    /// the f64 code, [`Gen::math_in_f64`]), reading buffers of that type
+    /// (complex ones are de-interleaved). Reductions accumulate in f64x2:
+    /// two accumulators for real f32x4 ones; complex reductions only in f64.
     fn vector_lane(&self, l: usize) -> Option<Type> {
         let (epoch, _, ref members) = self.sched.loops[l];
         let lane = self.ty_of(*members.first()?);
@@ -1198,7 +1239,7 @@ impl<'a> Gen<'a> {
         let mut operands_ok = || inst.op.operands().iter().all(|o| self.vectorisable(o.index(), lane, epoch, seen));
         match inst.op {
             Op::Broadcast(..) => operands_ok(),
-            Op::GridCoord(_) => lane == types::F64,
+            Op::GridCoord(_) => true,
             Op::Input(k) => buffer_ok(k as usize),
             Op::Table(t) => buffer_ok(self.table_buffer(t)),
             Op::Dft(..) | Op::Tensor(..) => buffer_ok(self.sched.stored[&i]),
@@ -1209,8 +1250,9 @@ impl<'a> Gen<'a> {
                     UnOp::Neg | UnOp::Sqrt | UnOp::Abs | UnOp::Sign | UnOp::Re | UnOp::Im | UnOp::Conj | UnOp::Abs2 | UnOp::ToComplex
                 );
                 // The inline f64 sin/cos/sincos and exp take f64x2 (a
-                // complex exp needs both exp and sincos).
-                let f64_math = |name| lane == types::F64 && self.inline_math_in(name, false);
+                // complex exp needs both exp and sincos); f32x4 goes
+                // through them as two promoted halves.
+                let f64_math = |name| self.inline_math_in(name, false);
                 let math = match u {
                     UnOp::Sin => f64_math("sin"),
                     UnOp::Cos => f64_math("cos"),
@@ -1251,23 +1293,39 @@ impl<'a> Gen<'a> {
                 let grid = &self.func.grids[g.0 as usize];
                 let (start, step) = (grid.start, grid.step);
                 let fi = self.b.ins().fcvt_from_sint(types::F64, lc.index);
-                let fi = match self.vector {
-                    // Lane k holds index + k (exact: indices are far below 2^53).
-                    Some(_) => {
-                        let base = self.b.ins().splat(types::F64X2, fi);
-                        let (zero, one) = (self.b.ins().f64const(0.0), self.b.ins().f64const(1.0));
-                        let k = self.b.ins().scalar_to_vector(types::F64X2, zero);
-                        let k = self.b.ins().insertlane(k, one, 1);
-                        self.b.ins().fadd(base, k)
-                    }
-                    None => fi,
+                let (st, s0) = (self.b.ins().f64const(step), self.b.ins().f64const(start));
+                // start + (index + k) · step in f64, lane k of each f64x2
+                // holding index + first + k (exact: indices are far below 2^53).
+                let mut coords = |first: f64| {
+                    let fi = match self.vector {
+                        Some(_) => {
+                            let base = self.b.ins().splat(types::F64X2, fi);
+                            let (k0, k1) = (self.b.ins().f64const(first), self.b.ins().f64const(first + 1.0));
+                            let k = self.b.ins().scalar_to_vector(types::F64X2, k0);
+                            let k = self.b.ins().insertlane(k, k1, 1);
+                            self.b.ins().fadd(base, k)
+                        }
+                        None => fi,
+                    };
+                    let (st, s0) = match self.vector {
+                        Some(_) => (self.b.ins().splat(types::F64X2, st), self.b.ins().splat(types::F64X2, s0)),
+                        None => (st, s0),
+                    };
+                    let prod = self.b.ins().fmul(fi, st);
+                    self.b.ins().fadd(s0, prod)
                 };
-                let st = self.b.ins().f64const(step);
-                let s0 = self.b.ins().f64const(start);
-                let (st, s0) = (self.splat(st), self.splat(s0));
-                let prod = self.b.ins().fmul(fi, st);
-                let x = self.b.ins().fadd(s0, prod);
-                Cv::real(self.cast(x, ty))
+                let x = match self.vector {
+                    // f32x4: lanes 0–1 and 2–3 as two f64x2, rounded to f32.
+                    Some(types::F32) => {
+                        let (low, high) = (coords(0.0), coords(2.0));
+                        self.demote_pair(low, high)
+                    }
+                    _ => {
+                        let x = coords(0.0);
+                        self.cast(x, ty)
+                    }
+                };
+                Cv::real(x)
             }
             Op::Input(k) => {
                 let x = self.load_elem(k as usize, lc.index, inst.ty.elem == Elem::Complex);

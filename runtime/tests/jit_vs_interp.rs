@@ -583,3 +583,105 @@ fn f32_rescaling_keeps_tiny_strains_in_range_and_exact() {
     assert!(rel(b.scalar("y").unwrap(), a.scalar("y").unwrap()) < 1e-5, "f32 {} vs f64 {}", b.scalar("y").unwrap(), a.scalar("y").unwrap());
     assert!(rel(b.grad("y", "a").unwrap(), a.grad("y", "a").unwrap()) < 1e-4);
 }
+
+/// f32 loops with sin, cos, `cis`, exp and grid coordinates vectorise in
+/// f32x4: each half is promoted to f64x2, computed by the inline f64 code
+/// and rounded back (`Gen::math_in_f64`), and the scalar tail computes the
+/// same way. Every
+/// lane agrees with the f64 function rounded to f32 (within one f32 ulp,
+/// 2^-23 relative, in `exact` and `fast`; `fastest`'s 1.3e-8 adds little),
+/// including lanes out of the inline domain that take the libm path.
+#[test]
+fn f32_transcendental_loops_vectorise_through_f64_halves() {
+    let src = "scene trig {
+        precision: f32
+        grid g = index(23)
+        input x: real[g] = 0.0
+        output sn = sin(x)
+        output cs = cos(x)
+        output z = cis(x)
+        output sg = sin(x + g)
+    }
+    scene expo {
+        precision: f32
+        grid g = index(23)
+        input x: real[g] = 0.0
+        output e = exp(x / 40000.0)
+    }
+    scene power {
+        precision: f32
+        grid g = index(23)
+        input x: real[g] = 0.0
+        output p = (abs(x) + 1.0) ^ (x / 1e6)
+    }";
+    let x: Vec<f64> = vec![
+        0.0,
+        -3.7,
+        12.5,
+        1e5,
+        2e6,
+        0.3,
+        3e6,
+        -2.5,
+        0.5,
+        0.75,
+        3.0,
+        -1e-10,
+        7e5,
+        1234.5678,
+        -98765.4321,
+        1.5e6,
+        42.0,
+        -0.001,
+        6.0,
+        -6.0,
+        100.0,
+        -100.0,
+        2.0,
+    ];
+    let model = Model::from_source("s.gw", src).unwrap();
+    let vectorised = |clif: &str| clif.contains("f32x4") && clif.contains("fvdemote");
+    let close = |got: f64, want: f64| (got - want).abs() <= 1.2e-7 * want.abs().max(1e-30);
+    for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
+        let opts = Options { math: Some(math), ..Default::default() };
+        let trig = model.scene_with(Some("trig"), opts).unwrap();
+        assert!(vectorised(&trig.forward_kernel().clif), "{math:?}: sin/cos not vectorised through f64");
+        let mut run = trig.bind();
+        run.input_real("x", &x).unwrap();
+        let out = run.forward().unwrap();
+        let (Ok(Value::RealArray(sn)), Ok(Value::RealArray(cs)), Ok(Value::ComplexArray(z)), Ok(Value::RealArray(sg))) =
+            (out.value("sn"), out.value("cs"), out.value("z"), out.value("sg"))
+        else {
+            panic!("array outputs")
+        };
+        for (k, &xk) in x.iter().enumerate() {
+            // Grid coordinates (0, 1, ...) in every lane and the tail.
+            let want = ((xk as f32 + k as f32) as f64).sin();
+            assert!(close(sg[k], want), "{math:?}: sin(x + g) at {k}: {} vs {want}", sg[k]);
+            // The kernel sees x rounded to f32.
+            let xf = xk as f32 as f64;
+            let (s, c) = xf.sin_cos();
+            assert!(close(sn[k], s) && close(z[k].im, s), "{math:?}: sin({xf:e}) = {} / {} vs {s}", sn[k], z[k].im);
+            assert!(close(cs[k], c) && close(z[k].re, c), "{math:?}: cos({xf:e}) = {} / {} vs {c}", cs[k], z[k].re);
+        }
+        // exp is inline in f64 only in fast/fastest; in exact it stays a
+        // libm call. A two-argument pow stays f32 (and keeps its loop scalar).
+        let [e, p] = ["expo", "power"].map(|name| {
+            let scene = model.scene_with(Some(name), opts).unwrap();
+            let expect = name == "expo" && math != MathMode::Exact;
+            assert_eq!(vectorised(&scene.forward_kernel().clif), expect, "{math:?}: {name}");
+            let mut run = scene.bind();
+            run.input_real("x", &x).unwrap();
+            let out = run.forward().unwrap();
+            let Ok(Value::RealArray(v)) = out.value(&name[..1]) else { panic!("an array output") };
+            v.clone()
+        });
+        for (k, &xk) in x.iter().enumerate() {
+            let xf = xk as f32;
+            let want = ((xf / 40000.0f32) as f64).exp();
+            assert!(close(e[k], want), "{math:?}: exp({xk:e} / 40000) = {} vs {want}", e[k]);
+            let want = ((xf.abs() + 1.0) as f64).powf((xf / 1e6f32) as f64);
+            assert!((p[k] - want).abs() <= 1e-6 * want, "{math:?}: pow at {xk:e} = {} vs {want}", p[k]);
+        }
+    }
+}
