@@ -1297,19 +1297,16 @@ impl<'a> Gen<'a> {
                 // start + (index + k) · step in f64, lane k of each f64x2
                 // holding index + first + k (exact: indices are far below 2^53).
                 let mut coords = |first: f64| {
-                    let fi = match self.vector {
+                    let (fi, st, s0) = match self.vector {
                         Some(_) => {
                             let base = self.b.ins().splat(types::F64X2, fi);
                             let (k0, k1) = (self.b.ins().f64const(first), self.b.ins().f64const(first + 1.0));
                             let k = self.b.ins().scalar_to_vector(types::F64X2, k0);
                             let k = self.b.ins().insertlane(k, k1, 1);
-                            self.b.ins().fadd(base, k)
+                            let fi = self.b.ins().fadd(base, k);
+                            (fi, self.b.ins().splat(types::F64X2, st), self.b.ins().splat(types::F64X2, s0))
                         }
-                        None => fi,
-                    };
-                    let (st, s0) = match self.vector {
-                        Some(_) => (self.b.ins().splat(types::F64X2, st), self.b.ins().splat(types::F64X2, s0)),
-                        None => (st, s0),
+                        None => (fi, st, s0),
                     };
                     let prod = self.b.ins().fmul(fi, st);
                     self.b.ins().fadd(s0, prod)

@@ -53,8 +53,7 @@ pub fn rescale(func: &Function) -> Function {
     let table_exps: Vec<i32> =
         header.tables.iter().map(|t| out_of_band_exponent(t.data.iter().fold(0.0, |m: f64, x| m.max(x.abs())))).collect();
     for (t, &e) in header.tables.iter_mut().zip(&table_exps) {
-        let k = 2f64.powi(-e);
-        t.data.iter_mut().for_each(|x| *x *= k);
+        t.data.iter_mut().for_each(|x| *x = times_pow2(*x, -e));
     }
     let mut r = Rescaler { b: Builder::new(header, true), magnitudes: &magnitudes, map: Vec::new(), exps: Vec::new() };
     for (i, inst) in func.insts.iter().enumerate() {
@@ -153,9 +152,8 @@ impl Rescaler<'_> {
     /// its stored magnitude left the band.
     fn keep_in_band(&mut self, v: Value, e: i32, m: f64) -> (Value, i32) {
         if m > 0.0 && m.is_finite() {
-            let stored = ideal_exponent(m) - e;
-            if stored.abs() > LIMIT {
-                let ideal = ideal_exponent(m);
+            let ideal = ideal_exponent(m);
+            if (ideal - e).abs() > LIMIT {
                 return (self.with_exponent(v, e, ideal), ideal);
             }
         }
