@@ -55,9 +55,9 @@ enum Command {
 pub enum Emit {
     /// The parsed syntax tree.
     Ast,
-    /// The scene's IR, pruned to what its outputs need.
+    /// The scene's IR, pruned to what its outputs need (before rescaling: in mixed precision its `f64` marks include values rescaling later brings into f32's range).
     Ir,
-    /// Forward and adjoint IR after simplification (what the gradient kernel runs).
+    /// Forward and adjoint IR after simplification, specialisation and rescaling: what the gradient kernel runs (`f64` marks what mixed precision computes in f64).
     Adjoint,
     /// Cranelift IR of the kernel (the gradient kernel if the scene asks for gradients).
     Clif,
@@ -71,8 +71,9 @@ pub enum PrecisionArg {
     /// 32-bit (reductions still accumulate in 64-bit; values far outside
     /// f32's range, such as strains of 1e-23, are stored scaled by powers of two).
     F32,
-    /// 32-bit, except phases (what flows into sin, cos, tan or a complex
-    /// exp) and reductions, which are 64-bit; `--emit ir` marks them `f64`.
+    /// 32-bit, rescaled as f32 is, except phases (what flows into sin,
+    /// cos, tan or a complex exp) and reductions, which are 64-bit;
+    /// `--emit adjoint` marks them `f64`.
     Mixed,
 }
 

@@ -190,12 +190,12 @@ fn a_reduction_of_1e7_terms_in_f32_keeps_relative_error_below_1e_6() {
 }
 
 /// Strains of 1e-23: at their true scale the PSD (~1e-46) and |d - h|²
-/// are below f32's range, so f32 rescales every value by a power of two
-/// fixed at compile time (`passes::rescale`); mixed precision computes such
-/// values in f64 instead. Both agree with f64: the loss to 1e-4 (measured
+/// are below f32's range, so f32 and mixed precision rescale every value
+/// by a power of two fixed at compile time (`passes::rescale`); mixed also
+/// keeps the phase in f64. Both agree with f64: the loss to 1e-4 (measured
 /// 4.0e-5 in f32, where the ~1e3 rad phase carries f32's rounding, and
-/// 7e-10 in mixed) and the gradient to 1e-3 of the gradient's size
-/// (measured 3.1e-5 and 4.8e-8).
+/// 2.3e-7 in mixed) and the gradient to 1e-3 of the gradient's size
+/// (measured 3.1e-5 and 2.5e-7).
 #[test]
 fn strains_of_1e_minus_23_in_f32_are_rescaled_and_agree_with_f64() {
     let model = Model::from_source("w.gw", SOURCE).unwrap();
@@ -225,8 +225,8 @@ fn strains_of_1e_minus_23_in_f32_are_rescaled_and_agree_with_f64() {
 /// Phases of 1.4e4 rad (Mc = 1 Msun, q = 1/100, 20-1024 Hz): in f32 the
 /// phase itself carries errors of ~1e4 × 2^-24 rad and more from its PN
 /// polynomial (measured 1.0e-2 rad at most: bounded here by 0.05); mixed
-/// precision keeps the phase in f64 automatically, so only the f32 rounding
-/// of cis(ψ) remains (measured 4e-8 rad: bounded by 1e-6).
+/// precision keeps the phase and cis(ψ) in f64 automatically, so they
+/// agree with f64 to its rounding (measured 3e-11 rad: bounded by 1e-6).
 #[test]
 fn phases_of_1e4_rad_in_f32_are_bounded_and_mixed_keeps_them_in_f64() {
     let src = "use std::taylorf2::{tf2_psi_pn}

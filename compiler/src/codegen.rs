@@ -548,8 +548,10 @@ struct Gen<'a> {
     /// The float type of the instruction being emitted (the lane type in a
     /// vectorised loop).
     ft: Type,
-    /// In a vectorised loop: its lane type (every value of the loop has
-    /// it), whose values are 128-bit vectors of that type.
+    /// In a vectorised loop: its lane type, whose values are 128-bit
+    /// vectors of that type. In an f32x4 loop of a mixed-precision scene,
+    /// the values computed in f64 are *split*: two f64x2 halves per four
+    /// lanes ([`Gen::wide_operand`]).
     vector: Option<Type>,
     /// The float type of inputs, outputs and library-call buffers.
     storage: Type,
@@ -566,7 +568,10 @@ struct Gen<'a> {
 struct LoopCtx {
     epoch: u32,
     index: cranelift_codegen::ir::Value,
+    /// Values in the loop's lane type.
     vals: HashMap<usize, Cv>,
+    /// In a split loop: values as two f64x2 halves (lanes 0–1, 2–3).
+    halves: HashMap<usize, [Cv; 2]>,
 }
 
 impl<'a> Gen<'a> {
@@ -735,7 +740,7 @@ impl<'a> Gen<'a> {
         name: &'static str,
         x: cranelift_codegen::ir::Value,
     ) -> Result<Vec<cranelift_codegen::ir::Value>, CodegenError> {
-        let (ft, vector) = (self.ft, self.vector);
+        let vector = self.vector;
         let parts = match vector {
             Some(_) => {
                 let (low, high) = self.promote_halves(x);
@@ -743,10 +748,7 @@ impl<'a> Gen<'a> {
             }
             None => vec![self.b.ins().fpromote(types::F64, x)],
         };
-        self.ft = types::F64;
-        self.vector = vector.map(|_| types::F64);
-        let results: Result<Vec<Vec<_>>, _> = parts.iter().map(|&p| self.math(name, &[p])).collect();
-        (self.ft, self.vector) = (ft, vector);
+        let results: Result<Vec<Vec<_>>, _> = self.in_f64(|g| parts.iter().map(|&p| g.math(name, &[p])).collect());
         let results = results?;
         Ok((0..results[0].len())
             .map(|k| match vector {
@@ -754,6 +756,17 @@ impl<'a> Gen<'a> {
                 None => self.b.ins().fdemote(types::F32, results[0][k]),
             })
             .collect())
+    }
+
+    /// `emit(self)` with f64 as the float type (and f64x2 lanes in a
+    /// vectorised loop), restoring the current types afterwards.
+    fn in_f64<T>(&mut self, emit: impl FnOnce(&mut Self) -> T) -> T {
+        let (ft, vector) = (self.ft, self.vector);
+        self.ft = types::F64;
+        self.vector = vector.map(|_| types::F64);
+        let result = emit(self);
+        (self.ft, self.vector) = (ft, vector);
+        result
     }
 
     /// The f32x4 of two f64x2 halves (lanes 0–1, then 2–3), rounded.
@@ -843,7 +856,8 @@ impl<'a> Gen<'a> {
         self.layout.buffers.iter().position(|b| b.kind == BufferKind::Table(t as usize)).expect("tables have buffers")
     }
 
-    /// The buffer an array operand of a library call is read from.
+    /// The buffer an array operand of a library call is read from (for an
+    /// input, a table or a call's result, the buffer it lives in).
     fn operand_buffer(&self, a: Value) -> usize {
         match self.func.insts[a.index()].op {
             Op::Input(k) => k as usize,
@@ -1110,17 +1124,16 @@ impl<'a> Gen<'a> {
         let done = self.b.ins().icmp_imm_s(IntCC::SignedGreaterThanOrEqual, i, to);
         self.b.ins().brif(done, exit, &[], body, &[]);
         self.b.switch_to_block(body);
-        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: i, vals: HashMap::new() };
+        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: i, vals: HashMap::new(), halves: HashMap::new() };
         for &m in &members {
             let inst = self.func.insts[m];
             if let Op::Reduce(r, a) = inst.op {
-                let x = self.loop_operand(&mut lc, a)?;
                 let (_, re_var, im_var) = *accs.iter().find(|(k, ..)| *k == m).expect("accumulator declared");
-                let acc = self.b.use_var(re_var);
                 if self.vector == Some(types::F32) {
                     // f32x4 (real) → two f64x2 halves, into the two accumulators.
+                    let [low, high] = self.wide_operand(&mut lc, a)?.map(|h| h.re);
                     let iv = im_var.expect("f32x4 reductions have two accumulators");
-                    let (low, high) = self.promote_halves(x.re);
+                    let acc = self.b.use_var(re_var);
                     let next = self.reduce_step(r, acc, low);
                     self.b.def_var(re_var, next);
                     let acc = self.b.use_var(iv);
@@ -1128,6 +1141,8 @@ impl<'a> Gen<'a> {
                     self.b.def_var(iv, next);
                     continue;
                 }
+                let x = self.loop_operand(&mut lc, a)?;
+                let acc = self.b.use_var(re_var);
                 let xr = self.widen(x.re);
                 let next = self.reduce_step(r, acc, xr);
                 self.b.def_var(re_var, next);
@@ -1136,6 +1151,13 @@ impl<'a> Gen<'a> {
                     let xi = self.widen(xi);
                     let next = self.b.ins().fadd(acc, xi);
                     self.b.def_var(iv, next);
+                }
+                continue;
+            }
+            if self.split(m) {
+                let halves = self.wide_operand(&mut lc, Value(m as u32))?;
+                if let Some(&buf) = self.sched.stored.get(&m) {
+                    self.store_halves(buf, lc.index, halves, inst.ty.elem == Elem::Complex);
                 }
                 continue;
             }
@@ -1194,16 +1216,32 @@ impl<'a> Gen<'a> {
 
     /// The lane type loop `l` can be vectorised in (128-bit vectors: f64x2
     /// or f32x4), or `None` to keep it scalar. Vectorised loops hold real
-    /// and complex values and truth values of one float type only,
-    /// computed by arithmetic, comparisons, selects, `sqrt`, `abs`,
-    /// `min`/`max`, complex parts, small integer powers and sin, cos,
-    /// `cis` and (`fast`/`fastest`) exp (no library calls; in f32 through
-    /// the f64 code, [`Gen::math_in_f64`]), reading buffers of that type
-    /// (complex ones are de-interleaved). Reductions accumulate in f64x2:
-    /// two accumulators for real f32x4 ones; complex reductions only in f64.
+    /// and complex values and truth values of the lane type, computed by
+    /// arithmetic, comparisons, selects, `sqrt`, `abs`, `min`/`max`,
+    /// complex parts, small integer powers and sin, cos, `cis` and
+    /// (`fast`/`fastest`) exp (no library calls; in f32 through the f64
+    /// code, [`Gen::math_in_f64`]), reading buffers of that type (complex
+    /// ones are de-interleaved). In mixed precision, an f32x4 loop also
+    /// holds the values computed in f64, split in two f64x2 halves (not
+    /// truth values or selects), and reads and writes buffers of either
+    /// type. Reductions accumulate in f64x2: two accumulators for real
+    /// f32x4 ones; complex reductions only in f64x2 loops.
     fn vector_lane(&self, l: usize) -> Option<Type> {
+        let mut lanes = vec![self.storage];
+        if self.storage != types::F64 {
+            // Mixed precision: a loop of f64 values only (say a complex
+            // reduction of a phase) may still vectorise in f64x2.
+            lanes.push(types::F64);
+        }
+        lanes.into_iter().find(|&lane| self.vectorises_in(l, lane))
+    }
+
+    /// Whether loop `l` can be vectorised with `lane`-typed vectors (see
+    /// [`Gen::vector_lane`]).
+    fn vectorises_in(&self, l: usize, lane: Type) -> bool {
         let (epoch, _, ref members) = self.sched.loops[l];
-        let lane = self.ty_of(*members.first()?);
+        // Split loops convert between f32 and f64 buffers and values.
+        let buffer_ok = |buf: usize| lane == types::F32 || self.buffer_ty(buf) == lane;
         let mut seen = std::collections::HashSet::new();
         for &m in members {
             let ok = match self.func.insts[m].op {
@@ -1211,15 +1249,13 @@ impl<'a> Gen<'a> {
                 Op::Reduce(_, a) => {
                     (lane == types::F64 || self.func.ty(a).elem != Elem::Complex) && self.vectorisable(a.index(), lane, epoch, &mut seen)
                 }
-                _ => {
-                    self.vectorisable(m, lane, epoch, &mut seen) && self.sched.stored.get(&m).is_none_or(|&buf| self.buffer_ty(buf) == lane)
-                }
+                _ => self.vectorisable(m, lane, epoch, &mut seen) && self.sched.stored.get(&m).is_none_or(|&buf| buffer_ok(buf)),
             };
             if !ok {
-                return None;
+                return false;
             }
         }
-        Some(lane)
+        !members.is_empty()
     }
 
     /// Whether value `i`, and what a loop of `epoch` computes it from, can
@@ -1232,10 +1268,15 @@ impl<'a> Gen<'a> {
         if inst.ty.shape == Shape::Scalar {
             return inst.ty.elem != Elem::Bool;
         }
-        if self.ty_of(i) != lane {
+        // Split into f64x2 halves in an f32x4 loop (mixed precision).
+        let split = lane == types::F32 && self.wide[i];
+        if split && (inst.ty.elem == Elem::Bool || matches!(inst.op, Op::Select(..))) {
             return false;
         }
-        let buffer_ok = |buf: usize| self.buffer_ty(buf) == lane;
+        if self.ty_of(i) != lane && !split {
+            return false;
+        }
+        let buffer_ok = |buf: usize| lane == types::F32 || self.buffer_ty(buf) == lane;
         let mut operands_ok = || inst.op.operands().iter().all(|o| self.vectorisable(o.index(), lane, epoch, seen));
         match inst.op {
             Op::Broadcast(..) => operands_ok(),
@@ -1243,7 +1284,7 @@ impl<'a> Gen<'a> {
             Op::Input(k) => buffer_ok(k as usize),
             Op::Table(t) => buffer_ok(self.table_buffer(t)),
             Op::Dft(..) | Op::Tensor(..) => buffer_ok(self.sched.stored[&i]),
-            _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < epoch => buffer_ok(self.sched.stored[&i]),
+            _ if self.reloaded(i, epoch) => buffer_ok(self.sched.stored[&i]),
             Op::Unary(u, _) => {
                 let inline = matches!(
                     u,
@@ -1269,7 +1310,8 @@ impl<'a> Gen<'a> {
         }
     }
 
-    /// The value of `v` inside the current loop iteration.
+    /// The value of `v` inside the current loop iteration, in the loop's
+    /// lane type (split values are rounded from their f64 halves).
     fn loop_operand(&mut self, lc: &mut LoopCtx, v: Value) -> Result<Cv, CodegenError> {
         let i = v.index();
         if let Some(x) = lc.vals.get(&i) {
@@ -1283,6 +1325,12 @@ impl<'a> Gen<'a> {
                 None => x,
             });
         }
+        if self.split(i) {
+            let halves = self.wide_operand(lc, v)?;
+            let x = self.demote_cv(halves);
+            lc.vals.insert(i, x);
+            return Ok(x);
+        }
         let ty = self.ty_of(i);
         let x = match inst.op {
             Op::Broadcast(a, _) => {
@@ -1290,60 +1338,29 @@ impl<'a> Gen<'a> {
                 self.splat_cv(x, ty)
             }
             Op::GridCoord(g) => {
-                let grid = &self.func.grids[g.0 as usize];
-                let (start, step) = (grid.start, grid.step);
-                let fi = self.b.ins().fcvt_from_sint(types::F64, lc.index);
-                let (st, s0) = (self.b.ins().f64const(step), self.b.ins().f64const(start));
-                // start + (index + k) · step in f64, lane k of each f64x2
-                // holding index + first + k (exact: indices are far below 2^53).
-                let mut coords = |first: f64| {
-                    let (fi, st, s0) = match self.vector {
-                        Some(_) => {
-                            let base = self.b.ins().splat(types::F64X2, fi);
-                            let (k0, k1) = (self.b.ins().f64const(first), self.b.ins().f64const(first + 1.0));
-                            let k = self.b.ins().scalar_to_vector(types::F64X2, k0);
-                            let k = self.b.ins().insertlane(k, k1, 1);
-                            let fi = self.b.ins().fadd(base, k);
-                            (fi, self.b.ins().splat(types::F64X2, st), self.b.ins().splat(types::F64X2, s0))
-                        }
-                        None => (fi, st, s0),
-                    };
-                    let prod = self.b.ins().fmul(fi, st);
-                    self.b.ins().fadd(s0, prod)
-                };
                 let x = match self.vector {
                     // f32x4: lanes 0–1 and 2–3 as two f64x2, rounded to f32.
                     Some(types::F32) => {
-                        let (low, high) = (coords(0.0), coords(2.0));
+                        let (low, high) = (self.grid_coords(g, lc.index, 0), self.grid_coords(g, lc.index, 2));
                         self.demote_pair(low, high)
                     }
                     _ => {
-                        let x = coords(0.0);
+                        let x = self.grid_coords(g, lc.index, 0);
                         self.cast(x, ty)
                     }
                 };
                 Cv::real(x)
             }
-            Op::Input(k) => {
-                let x = self.load_elem(k as usize, lc.index, inst.ty.elem == Elem::Complex);
-                self.cast_cv(x, ty)
-            }
-            Op::Table(t) => {
-                let buf = self.table_buffer(t);
-                let x = self.load_elem(buf, lc.index, false);
-                self.cast_cv(x, ty)
-            }
-            // Library calls write their whole result before any loop reads it.
-            Op::Dft(..) | Op::Tensor(..) => {
-                let x = self.load_elem(self.sched.stored[&i], lc.index, inst.ty.elem == Elem::Complex);
+            Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) => {
+                let x = self.load_lanes(self.operand_buffer(v), lc.index, inst.ty.elem == Elem::Complex);
                 self.cast_cv(x, ty)
             }
             // Stored by an earlier loop: reload instead of recomputing.
-            _ if self.sched.stored.contains_key(&i) && self.sched.epoch[i] < lc.epoch => {
+            _ if self.reloaded(i, lc.epoch) => {
                 let buf = self.sched.stored[&i];
-                let v = self.load_elem(buf, lc.index, inst.ty.elem == Elem::Complex);
+                let v = self.load_lanes(buf, lc.index, inst.ty.elem == Elem::Complex);
                 if inst.ty.elem == Elem::Bool {
-                    self.ft = self.buffer_ty(buf);
+                    self.ft = self.vector.unwrap_or_else(|| self.buffer_ty(buf));
                     let zero = self.fconst(0.0);
                     Cv::real(self.b.ins().fcmp(FloatCC::NotEqual, v.re, zero))
                 } else {
@@ -1364,6 +1381,143 @@ impl<'a> Gen<'a> {
         };
         lc.vals.insert(i, x);
         Ok(x)
+    }
+
+    /// Whether array value `i` is split in the loop being emitted: computed
+    /// in f64 (mixed precision) inside an f32x4 loop.
+    fn split(&self, i: usize) -> bool {
+        self.vector == Some(types::F32) && self.wide[i]
+    }
+
+    /// Whether array value `i` is read from the buffer an earlier loop
+    /// stored it to, in a loop of `epoch`.
+    fn reloaded(&self, i: usize, epoch: u32) -> bool {
+        self.sched.stored.contains_key(&i) && self.sched.epoch[i] < epoch
+    }
+
+    /// In a split loop: value `v` as two f64x2 halves, lanes 0–1 and 2–3
+    /// (a value computed in f32 is promoted, a scalar splat). Each f64
+    /// operation is emitted once per half, as the scalar tail would
+    /// compute it lane by lane.
+    fn wide_operand(&mut self, lc: &mut LoopCtx, v: Value) -> Result<[Cv; 2], CodegenError> {
+        let i = v.index();
+        if let Some(h) = lc.halves.get(&i) {
+            return Ok(*h);
+        }
+        let inst = self.func.insts[i];
+        let halves = if inst.ty.shape == Shape::Scalar {
+            let x = self.vals[&i];
+            let x = self.in_f64(|g| g.splat_cv(x, types::F64));
+            [x, x]
+        } else if !self.wide[i] {
+            let x = self.loop_operand(lc, v)?;
+            self.promote_cv(x)
+        } else {
+            match inst.op {
+                Op::Broadcast(a, _) => {
+                    let x = self.vals[&a.index()];
+                    let x = self.in_f64(|g| g.splat_cv(x, types::F64));
+                    [x, x]
+                }
+                Op::GridCoord(g) => [0, 2].map(|first| Cv::real(self.grid_coords(g, lc.index, first))),
+                Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) => {
+                    self.load_halves(self.operand_buffer(v), lc.index, inst.ty.elem == Elem::Complex)
+                }
+                _ if self.reloaded(i, lc.epoch) => self.load_halves(self.sched.stored[&i], lc.index, inst.ty.elem == Elem::Complex),
+                op => {
+                    let mut ops = Vec::new();
+                    for o in op.operands() {
+                        ops.push(self.wide_operand(lc, o)?);
+                    }
+                    let mut halves = Vec::new();
+                    for h in 0..2 {
+                        let ops: Vec<Cv> = ops.iter().map(|o| o[h]).collect();
+                        halves.push(self.in_f64(|g| g.elementwise(inst, &ops, None))?);
+                    }
+                    [halves[0], halves[1]]
+                }
+            }
+        };
+        lc.halves.insert(i, halves);
+        Ok(halves)
+    }
+
+    /// Coordinates `index + first` (and `+ 1` in lane 1 of a vectorised
+    /// loop's f64x2) of grid `g`, `start + k · step` in f64 (exact in `k`:
+    /// indices are far below 2^53).
+    fn grid_coords(&mut self, g: GridId, index: cranelift_codegen::ir::Value, first: i64) -> cranelift_codegen::ir::Value {
+        let grid = &self.func.grids[g.0 as usize];
+        let (start, step) = (grid.start, grid.step);
+        let fi = self.b.ins().fcvt_from_sint(types::F64, index);
+        let (st, s0) = (self.b.ins().f64const(step), self.b.ins().f64const(start));
+        let (fi, st, s0) = match self.vector {
+            Some(_) => {
+                let base = self.b.ins().splat(types::F64X2, fi);
+                let (k0, k1) = (self.b.ins().f64const(first as f64), self.b.ins().f64const(first as f64 + 1.0));
+                let k = self.b.ins().scalar_to_vector(types::F64X2, k0);
+                let k = self.b.ins().insertlane(k, k1, 1);
+                let fi = self.b.ins().fadd(base, k);
+                (fi, self.b.ins().splat(types::F64X2, st), self.b.ins().splat(types::F64X2, s0))
+            }
+            None => (fi, st, s0),
+        };
+        let prod = self.b.ins().fmul(fi, st);
+        self.b.ins().fadd(s0, prod)
+    }
+
+    /// Elements `index..` of buffer `buf` in the loop's lane type: as
+    /// [`Gen::load_elem`], except that a split loop reads an f64 buffer as
+    /// two f64x2 halves rounded to one f32x4.
+    fn load_lanes(&mut self, buf: usize, index: cranelift_codegen::ir::Value, complex: bool) -> Cv {
+        if self.vector == Some(types::F32) && self.buffer_ty(buf) == types::F64 {
+            let halves = self.load_halves(buf, index, complex);
+            return self.demote_cv(halves);
+        }
+        self.load_elem(buf, index, complex)
+    }
+
+    /// In a split loop: four elements from `index` of buffer `buf` as two
+    /// f64x2 halves (an f32 buffer's f32x4 promoted).
+    fn load_halves(&mut self, buf: usize, index: cranelift_codegen::ir::Value, complex: bool) -> [Cv; 2] {
+        if self.buffer_ty(buf) == types::F32 {
+            let x = self.load_elem(buf, index, complex);
+            return self.promote_cv(x);
+        }
+        self.in_f64(|g| {
+            let second = g.b.ins().iadd_imm_s(index, 2);
+            [g.load_elem(buf, index, complex), g.load_elem(buf, second, complex)]
+        })
+    }
+
+    /// In a split loop: stores the halves of four elements from `index` to
+    /// buffer `buf` (rounded to one f32x4 for an f32 buffer).
+    fn store_halves(&mut self, buf: usize, index: cranelift_codegen::ir::Value, halves: [Cv; 2], complex: bool) {
+        if self.buffer_ty(buf) == types::F32 {
+            let x = self.demote_cv(halves);
+            return self.store_elem(buf, index, x, complex);
+        }
+        self.in_f64(|g| {
+            let second = g.b.ins().iadd_imm_s(index, 2);
+            g.store_elem(buf, index, halves[0], complex);
+            g.store_elem(buf, second, halves[1], complex);
+        })
+    }
+
+    /// An f32x4 value as two f64x2 halves.
+    fn promote_cv(&mut self, x: Cv) -> [Cv; 2] {
+        let (re_low, re_high) = self.promote_halves(x.re);
+        let im = x.im.map(|im| self.promote_halves(im));
+        [Cv { re: re_low, im: im.map(|h| h.0) }, Cv { re: re_high, im: im.map(|h| h.1) }]
+    }
+
+    /// Two f64x2 halves as one f32x4 value, rounded.
+    fn demote_cv(&mut self, [low, high]: [Cv; 2]) -> Cv {
+        let re = self.demote_pair(low.re, high.re);
+        let im = match (low.im, high.im) {
+            (Some(a), Some(b)) => Some(self.demote_pair(a, b)),
+            _ => None,
+        };
+        Cv { re, im }
     }
 
     /// Emits one elementwise operation on already-computed operands.

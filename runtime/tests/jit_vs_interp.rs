@@ -685,3 +685,66 @@ fn f32_transcendental_loops_vectorise_through_f64_halves() {
         }
     }
 }
+
+/// In mixed precision, an f32x4 loop splits the values it computes in f64
+/// (phases and their sines) into two f64x2 halves: each half is computed,
+/// stored and reloaded as f64 (the scratch array `ph` crosses from the
+/// reduction's loop to the next), and rounded to f32 where an f32 value
+/// uses it. Every lane, and the scalar tail (23 = 5 · 4 + 3), agrees with
+/// that rule applied element by element: with x up to 1e5 the phase
+/// computed in f32 would be off by ~1e-2 rad.
+#[test]
+fn mixed_loops_split_f64_values_into_f64x2_halves() {
+    let src = "scene mix {
+        precision: mixed
+        grid g = index(23)
+        input x: real[g] = 0.0
+        input a: real[g] = 0.0
+        param w = 3.0
+        let ph = w * x + g
+        let t = sum(a)
+        output y = a * sin(ph)
+        output z = a * cis(w * x)
+        output p = ph
+        output s = sum(a * cos(x))
+        output u = sin(ph) * t
+    }";
+    let x: Vec<f64> = (0..23).map(|k| if k % 3 == 0 { 1e5 + 37.3 * k as f64 } else { -2.5 * k as f64 + 0.3 }).collect();
+    let a: Vec<f64> = (0..23).map(|k| 0.5 + 0.1 * k as f64).collect();
+    let model = Model::from_source("m.gw", src).unwrap();
+    for math in [MathMode::Exact, MathMode::Fast] {
+        let opts = Options { math: Some(math), ..Default::default() };
+        let scene = model.scene_with(Some("mix"), opts).unwrap();
+        let clif = &scene.forward_kernel().clif;
+        assert!(clif.contains("f32x4") && clif.contains("f64x2"), "{math:?}: mixed loops not split-vectorised");
+        let mut run = scene.bind();
+        run.input_real("x", &x).unwrap().input_real("a", &a).unwrap();
+        let out = run.forward().unwrap();
+        let arrays = ["y", "p", "u"].map(|name| match out.value(name) {
+            Ok(Value::RealArray(v)) => v.clone(),
+            other => panic!("{name}: {other:?}"),
+        });
+        let [y, p, u] = &arrays;
+        let Ok(Value::ComplexArray(z)) = out.value("z") else { panic!("z is a complex array") };
+        let f32_close = |got: f64, want: f64| (got - want).abs() <= 1.2e-7 * want.abs().max(1e-30);
+        // The kernel sees the inputs rounded to f32; f32 products of f64 values rounded to f32.
+        let (xf, af): (Vec<f64>, Vec<f64>) = (x.iter().map(|&v| v as f32 as f64).collect(), a.iter().map(|&v| v as f32 as f64).collect());
+        let t: f64 = af.iter().sum::<f64>() as f32 as f64;
+        let mut s = 0.0;
+        for k in 0..23 {
+            let ph = 3.0 * xf[k] + k as f64;
+            let round = |v: f64| v as f32 as f64;
+            assert!(f32_close(p[k], ph), "{math:?}: phase at {k}: {} vs {ph}", p[k]);
+            let want = round(af[k] * round(ph.sin()));
+            assert!(f32_close(y[k], want), "{math:?}: a·sin(ph) at {k}: {} vs {want}", y[k]);
+            let want = round(round(ph.sin()) * t);
+            assert!(f32_close(u[k], want), "{math:?}: sin(ph)·t at {k}: {} vs {want}", u[k]);
+            let (sn, cs) = (3.0 * xf[k]).sin_cos();
+            let (re, im) = (round(af[k] * round(cs)), round(af[k] * round(sn)));
+            assert!(f32_close(z[k].re, re) && f32_close(z[k].im, im), "{math:?}: a·cis at {k}: {} vs {re} + {im}i", z[k]);
+            s += round(af[k] * round(xf[k].cos()));
+        }
+        let got = out.scalar("s").unwrap();
+        assert!((got - s).abs() <= 1e-6 * a.iter().sum::<f64>(), "{math:?}: sum {got} vs {s}");
+    }
+}

@@ -1,4 +1,4 @@
-//! Power-of-two rescaling for `precision: f32`.
+//! Power-of-two rescaling for `precision: f32` and `mixed`.
 //!
 //! Gravitational-wave strains are ~1e-23 and PSDs ~1e-46: in f32 (normal
 //! range 1.2e-38 … 3.4e38) `|d - h|²` and the PSD itself flush to zero, so
@@ -27,8 +27,9 @@
 //!   ([`Output::exponent`]), gradients at their true scale.
 //!
 //! A value that is out of f32's range at its true scale where it must be
-//! used at that scale (the operand of `exp`, say) still is: codegen's range
-//! check refuses such scenes and points to `precision: mixed`.
+//! used at that scale (the operand of `exp`, say) still is: in f32,
+//! codegen's range check refuses such scenes and points to `precision:
+//! mixed`, which computes them in f64.
 
 use crate::builder::Builder;
 use crate::ir::*;
@@ -39,10 +40,11 @@ use num_complex::Complex64 as C64;
 const LIMIT: i32 = 40;
 
 /// `func` with every value stored as `x · 2^-e` (see the module doc) when
-/// its precision is f32; unchanged in f64 and mixed, and when the defaults
-/// are too expensive to evaluate.
+/// it stores values in f32 (precisions f32 and mixed; in mixed, this leaves
+/// phases the only values computed in f64, see [`Function::wide_values`]);
+/// unchanged in f64, and when the defaults are too expensive to evaluate.
 pub fn rescale(func: &Function) -> Function {
-    if func.precision != Precision::F32 {
+    if func.precision.storage() != Precision::F32 {
         return func.clone();
     }
     let Some(magnitudes) = func.default_magnitudes() else {
