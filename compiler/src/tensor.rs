@@ -321,7 +321,8 @@ fn pool_windows(p: Pool, mut f: impl FnMut(usize, usize)) {
 }
 
 /// Calls `f(src, dst)` once per window `dst` with `src` the position of the
-/// first largest element of `x` in it (NaN never wins against a number).
+/// first largest element of `x` in it (NaN never wins against a number; in
+/// a window of NaNs only, the last).
 fn pool_argmax<T: Float>(p: Pool, x: &[T], mut f: impl FnMut(usize, usize)) {
     let u = |x: u32| x as usize;
     for ch in 0..u(p.channels) {
@@ -479,6 +480,16 @@ mod tests {
         let x = [1.0, 1.0, -2.0, 3.0];
         assert_eq!(run(TensorOp::PoolPick(p), &x, &x), vec![1.0, 3.0]);
         assert_eq!(run(TensorOp::PoolScatter(p), &x, &[10.0, 20.0]), vec![10.0, 0.0, 0.0, 20.0]);
+    }
+
+    /// NaN never wins against a number, wherever it sits in the window.
+    #[test]
+    fn max_pooling_passes_over_nan() {
+        let p = Pool { channels: 1, len_in: 9, len_out: 3, window: 3, stride: 3 };
+        let x = [f64::NAN, -1.0, -3.0, 2.0, f64::NAN, 5.0, 4.0, 4.0, f64::NAN];
+        assert_eq!(run(TensorOp::PoolPick(p), &x, &x), vec![-1.0, 5.0, 4.0]);
+        let positions = run(TensorOp::PoolScatter(p), &x, &[1.0, 2.0, 3.0]);
+        assert_eq!(positions, vec![0.0, 1.0, 0.0, 0.0, 0.0, 2.0, 3.0, 0.0, 0.0]);
     }
 
     #[test]
