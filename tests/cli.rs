@@ -111,18 +111,19 @@ fn f32_run_agrees_with_f64() {
     assert!(close(y, x, 1e-3), "f32 loss {y} vs f64 {x}");
 }
 
-/// `--precision mixed --emit ir` says which values mixed precision computes
-/// in f64: the chirp's `cis` is marked, not every value is, f32 marks
-/// none, and the header names the precision.
+/// `--precision mixed --emit adjoint` (the IR the kernels run, after
+/// rescaling) says which values mixed precision computes in f64: the
+/// chirp's `cis` is marked, not every value is, f32 marks none, and the
+/// header names the precision.
 #[test]
-fn emit_ir_marks_the_values_mixed_precision_keeps_in_f64() {
-    let (ok, out, err) = gwml(&["compile", "examples/chirp_fit.gw", "--precision", "mixed", "--emit", "ir"]);
+fn emit_adjoint_marks_the_values_mixed_precision_keeps_in_f64() {
+    let (ok, out, err) = gwml(&["compile", "examples/chirp_fit.gw", "--precision", "mixed", "--emit", "adjoint"]);
     assert!(ok, "{err}");
     assert!(out.contains("(precision mixed,"), "{out}");
     assert!(out.lines().any(|l| l.contains(" f64 = cis ")), "no cis computed in f64:\n{out}");
     let values = out.lines().filter(|l| l.trim_start().starts_with('%')).count();
     let wide = out.lines().filter(|l| l.contains(" f64 = ")).count();
     assert!(wide > 0 && wide < values, "{wide} of {values} values in f64");
-    let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--precision", "f32", "--emit", "ir"]);
+    let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--precision", "f32", "--emit", "adjoint"]);
     assert!(ok && !out.contains(" f64 = "), "f32 marks nothing:\n{out}");
 }
