@@ -1240,8 +1240,6 @@ impl<'a> Gen<'a> {
     /// [`Gen::vector_lane`]).
     fn vectorises_in(&self, l: usize, lane: Type) -> bool {
         let (epoch, _, ref members) = self.sched.loops[l];
-        // Split loops convert between f32 and f64 buffers and values.
-        let buffer_ok = |buf: usize| lane == types::F32 || self.buffer_ty(buf) == lane;
         let mut seen = std::collections::HashSet::new();
         for &m in members {
             let ok = match self.func.insts[m].op {
@@ -1249,7 +1247,9 @@ impl<'a> Gen<'a> {
                 Op::Reduce(_, a) => {
                     (lane == types::F64 || self.func.ty(a).elem != Elem::Complex) && self.vectorisable(a.index(), lane, epoch, &mut seen)
                 }
-                _ => self.vectorisable(m, lane, epoch, &mut seen) && self.sched.stored.get(&m).is_none_or(|&buf| buffer_ok(buf)),
+                _ => {
+                    self.vectorisable(m, lane, epoch, &mut seen) && self.sched.stored.get(&m).is_none_or(|&buf| self.buffer_fits(buf, lane))
+                }
             };
             if !ok {
                 return false;
@@ -1276,7 +1276,7 @@ impl<'a> Gen<'a> {
         if self.ty_of(i) != lane && !split {
             return false;
         }
-        let buffer_ok = |buf: usize| lane == types::F32 || self.buffer_ty(buf) == lane;
+        let buffer_ok = |buf: usize| self.buffer_fits(buf, lane);
         let mut operands_ok = || inst.op.operands().iter().all(|o| self.vectorisable(o.index(), lane, epoch, seen));
         match inst.op {
             Op::Broadcast(..) => operands_ok(),
@@ -1308,6 +1308,13 @@ impl<'a> Gen<'a> {
             Op::Select(..) => operands_ok(),
             _ => false,
         }
+    }
+
+    /// Whether a `lane`-typed vector loop can read and write buffer `buf`:
+    /// one of the lane type, or any in an f32x4 loop (whose split values
+    /// convert between f32 and f64).
+    fn buffer_fits(&self, buf: usize, lane: Type) -> bool {
+        lane == types::F32 || self.buffer_ty(buf) == lane
     }
 
     /// The value of `v` inside the current loop iteration, in the loop's
@@ -1414,11 +1421,7 @@ impl<'a> Gen<'a> {
             self.promote_cv(x)
         } else {
             match inst.op {
-                Op::Broadcast(a, _) => {
-                    let x = self.vals[&a.index()];
-                    let x = self.in_f64(|g| g.splat_cv(x, types::F64));
-                    [x, x]
-                }
+                Op::Broadcast(a, _) => self.wide_operand(lc, a)?,
                 Op::GridCoord(g) => [0, 2].map(|first| Cv::real(self.grid_coords(g, lc.index, first))),
                 Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) => {
                     self.load_halves(self.operand_buffer(v), lc.index, inst.ty.elem == Elem::Complex)

@@ -439,16 +439,16 @@ pub enum Precision {
     /// far outside f32's range are stored scaled by powers of two
     /// (`passes::rescale`).
     F32,
-    /// f32, except two kinds of values, which are computed (and kept, in
-    /// tables, scratch arrays and outputs) in f64: phases, i.e. every value
-    /// that flows through elementwise arithmetic alone into the argument of
-    /// a sine, cosine, tangent, `cis` or complex exponential, and that
-    /// function itself; and values outside f32's comfortable range, i.e.
-    /// whose largest magnitude, when the scene is evaluated at its default
-    /// params and inputs, is below 2^-96 or above 2^96 (f32's normal range
-    /// less 2^30 of headroom: strains of 1e-23 are f32, their squares and a
-    /// PSD of 1e-46 are f64), and what is computed directly from those
-    /// (a ratio |h|²/S of order one). Reductions accumulate in f64. Inputs, and what
+    /// f32, rescaled as [`Precision::F32`] is, except two kinds of values,
+    /// which are computed (and kept, in tables, scratch arrays and outputs)
+    /// in f64: phases, i.e. every value that flows through elementwise
+    /// arithmetic alone into the argument of a sine, cosine, tangent, `cis`
+    /// or complex exponential, and that function itself; and values still
+    /// outside f32's comfortable range after rescaling, i.e. whose largest
+    /// magnitude, when the scene is evaluated at its default params and
+    /// inputs, is below 2^-96 or above 2^96 (f32's normal range less 2^30
+    /// of headroom; the result of `exp(100)`, say), and what is computed
+    /// directly from those. Reductions accumulate in f64. Inputs, and what
     /// transforms and tensor ops read and write, stay f32. See
     /// [`Function::wide_values`].
     Mixed,
