@@ -4,12 +4,24 @@
 W1: TaylorF2 3.5PN, m1 = 36, m2 = 29 Msun, non-spinning, 400 Mpc, 20..1024 Hz
 at df = 1/8 Hz (8,033 bins), float64, one thread.
 
+Two variants of the strain, each measured in all three codes:
+  cut             zero above the Schwarzschild ISCO f_isco = 1/(6^1.5 pi M) (67.6 Hz
+                  here, 382 nonzero bins), std::taylorf2's model. gwml: scenes
+                  `w1_strain`, `w1_fit`; its kernels split their loop at the cut
+                  and evaluate the waveform below it only. LAL: f_max = 0, which
+                  is LAL's own ISCO cut (a 542-bin series, 382 nonzero; its loop
+                  stops at the ISCO too). ripple: the strain through
+                  jnp.where(f <= f_isco, h, 0), as a JAX user would write the cut
+                  (XLA still evaluates every bin).
+  full            no cut, all 8,033 bins: gwml scenes `w1_strain_full`,
+                  `w1_fit_full`; LAL f_max = 1024 (a 0..1024 Hz series of 8,193
+                  bins, 8,033 nonzero); ripple as is.
+
 Measured (median of --reps calls after warm-up, wall clock):
-  forward         gwml: `w1_strain` scene, complex strain out (benches/taylorf2.rs)
+  forward         gwml: complex strain out (benches/taylorf2.rs)
                   LAL:  lalsimulation.SimInspiralChooseFDWaveform(..., TaylorF2),
-                        f_min = 20, f_max = 1024 (as scripts/lal_fixtures.py), f_ref = 0,
-                        default (highest, 3.5PN) phase order, Newtonian amplitude
-                        (LAL fills a 0..1024 Hz series of 8,193 bins, 8,033 nonzero)
+                        f_min = 20, f_ref = 0, default (highest, 3.5PN) phase order,
+                        Newtonian amplitude
                   ripple: jax.jit of ripplegw's gen_TaylorF2 (the function API in
                         ripplegw/waveforms/cbc/Taylor/TaylorF2.py; lambdas = 0),
                         block_until_ready
@@ -22,17 +34,15 @@ Measured (median of --reps calls after warm-up, wall clock):
   S(f)            the toy PSD of examples/taylorf2_fit.gw: 1e-47 (y^-4 + 2 + 2 y^2),
                   y = f / 150 Hz, precomputed once as an array (gwml folds it into a
                   table at scene compile time, the same footing).
-  data d          each code's own model at the true params (Mc = 28.0956, q = 29/36,
-                  tc = 0, phic = 0); evaluation point Mc = 28.1, q = 0.8,
-                  tc = 0.0005 s, phic = 0.1.
+  data d          each code's own model (of the variant) at the true params
+                  (Mc = 28.0956, q = 29/36, tc = 0, phic = 0); evaluation point
+                  Mc = 28.1, q = 0.8, tc = 0.0005 s, phic = 0.1.
   grid            the frequency array is a closure constant of the jitted JAX
                   functions (gwml's grid is a compile-time constant too).
 
-Differences that remain (stated, not fixed): gwml's amplitude is zero above the
-Schwarzschild ISCO (67.6 Hz here; every bin is still evaluated), LAL with
-f_max = 1024 and ripple have no cut; ripple evaluates the tidal phase terms
-(with lambda = 0) and its own f_ref = 20 Hz constant. So loss values differ
-between gwml and ripple; timings are of the same grid and arithmetic scale.
+Differences that remain (stated, not fixed): ripple evaluates the tidal phase
+terms (with lambda = 0) and its own f_ref = 20 Hz constant, so loss values
+differ between gwml and ripple; timings are of the same grid and arithmetic.
 
 JAX compilation (trace + XLA compile, the first call) is excluded from the
 medians and reported separately; so is gwml's scene compilation.
@@ -75,6 +85,7 @@ os.environ["JAX_PLATFORMS"] = "cpu"
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 M1, M2 = 36.0, 29.0
+MTSUN = 4.925490947641267e-6  # G Msun / c^3 in s (LAL's MTSUN_SI)
 DIST_MPC = 400.0
 F_MIN, F_MAX, DF = 20.0, 1024.0, 0.125
 NBINS = int(round((F_MAX - F_MIN) / DF)) + 1  # 8033
@@ -103,7 +114,8 @@ def median_us(fn, reps, warm):
     return ts[len(ts) // 2]
 
 
-def time_lal(reps):
+def time_lal(reps, f_max):
+    """LAL's TaylorF2 with the given f_max (0: LAL's ISCO cut): median µs, series length, nonzero bins."""
     import lal
     import lalsimulation as ls
 
@@ -113,7 +125,7 @@ def time_lal(reps):
     def call():
         return ls.SimInspiralChooseFDWaveform(
             M1 * lal.MSUN_SI, M2 * lal.MSUN_SI, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-            dist_m, 0.0, 0.0, 0.0, 0.0, 0.0, DF, F_MIN, F_MAX, 0.0, params, ls.TaylorF2)
+            dist_m, 0.0, 0.0, 0.0, 0.0, 0.0, DF, F_MIN, f_max, 0.0, params, ls.TaylorF2)
 
     hp, _ = call()
     nonzero = int((abs(hp.data.data) > 0).sum())
@@ -121,7 +133,8 @@ def time_lal(reps):
     return us, hp.data.length, nonzero
 
 
-def time_ripple(reps):
+def time_ripple(reps, cut):
+    """ripplegw's TaylorF2 (masked at the ISCO with jnp.where if `cut`): forward, likelihood, value_and_grad."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -142,7 +155,12 @@ def time_ripple(reps):
         return jnp.stack([mc, eta, z, z, z, z, z + DIST_MPC, tc, phic])
 
     def strain(p):
-        return gen_TaylorF2(f, theta(p[0], p[1], p[2], p[3]), f_ref, use_lambda_tildes=False)
+        h = gen_TaylorF2(f, theta(p[0], p[1], p[2], p[3]), f_ref, use_lambda_tildes=False)
+        if not cut:
+            return h
+        total_mass = p[0] * (p[1] / (1.0 + p[1]) ** 2) ** -0.6
+        f_isco = 1.0 / (6.0 ** 1.5 * np.pi * total_mass * MTSUN)
+        return jnp.where(f <= f_isco, h, 0.0)
 
     p_true = jnp.array([MC_TRUE, Q_TRUE, 0.0, 0.0])
     p = jnp.array(POINT)
@@ -197,34 +215,36 @@ def main():
           f"({F_MIN}..{F_MAX} Hz, df = {DF}), f64, one thread; pinned: {pinned}; median of {args.reps}")
 
     gw, _ = gwml_results(args.gwml_output)
-    lal_us, lal_len, lal_nz = time_lal(args.reps)
-    rp = time_ripple(args.reps)
-
-    print(f"LAL: {lal_len} bins in the series, {lal_nz} nonzero; ripplegw {rp['version']}, jax {rp['jax']}")
-    print(f"gwml scene compile: {gw.get('gwml_compile_ms', float('nan')):.1f} ms; JAX trace+compile (first call): "
-          f"forward {rp['forward_compile_ms']:.1f} ms, loss {rp['loss_forward_compile_ms']:.1f} ms, "
-          f"value_and_grad {rp['value_and_grad_compile_ms']:.1f} ms")
-    print(f"loss at (Mc, q, tc, phic) = {POINT}: gwml {gw.get('gwml_loss', float('nan')):.6e}, ripple {rp['loss']:.6e} "
-          "(different models above the ISCO; not expected to agree)")
-    print(f"ripple grad (Mc, q, tc, phic): {', '.join(f'{x:.4e}' for x in rp['grad'])}")
-    print("gwml   grad (Mc, q, tc, phic): " + ", ".join(
-        f"{gw.get('gwml_grad_' + n, float('nan')):.4e}" for n in ("mc", "q", "tc", "phic")))
+    rows = []
+    for variant, suffix, f_max in (("cut at ISCO", "", 0.0), ("full band", "_full", F_MAX)):
+        lal_us, lal_len, lal_nz = time_lal(args.reps, f_max)
+        rp = time_ripple(args.reps, cut=(suffix == ""))
+        print(f"{variant}: LAL (f_max = {f_max}) {lal_len} bins in the series, {lal_nz} nonzero; "
+              f"ripplegw {rp['version']}, jax {rp['jax']}")
+        print(f"  gwml scene compile: {gw.get('gwml_compile' + suffix + '_ms', float('nan')):.1f} ms; "
+              f"JAX trace+compile (first call): forward {rp['forward_compile_ms']:.1f} ms, "
+              f"loss {rp['loss_forward_compile_ms']:.1f} ms, value_and_grad {rp['value_and_grad_compile_ms']:.1f} ms")
+        print(f"  loss at (Mc, q, tc, phic) = {POINT}: gwml {gw.get('gwml_loss' + suffix, float('nan')):.6e}, "
+              f"ripple {rp['loss']:.6e} (ripple's tidal terms and f_ref differ; not expected to agree)")
+        print(f"  ripple grad (Mc, q, tc, phic): {', '.join(f'{x:.4e}' for x in rp['grad'])}")
+        print("  gwml   grad (Mc, q, tc, phic): " + ", ".join(
+            f"{gw.get('gwml_grad_' + n + suffix, float('nan')):.4e}" for n in ("mc", "q", "tc", "phic")))
+        g = {k: gw["gwml_" + k + suffix + "_us"] for k in ("forward", "loss_forward", "value_and_grad")}
+        rows.append((f"forward, {variant}", g["forward"], lal_us, rp["forward_us"]))
+        rows.append((f"likelihood, {variant}", g["loss_forward"], None, rp["loss_forward_us"]))
+        rows.append((f"value_and_grad, {variant}", g["value_and_grad"], None, rp["value_and_grad_us"]))
+        print(f"peers_lal_forward{suffix}_us {lal_us:.3f}")
+        for k in ("forward", "loss_forward", "value_and_grad"):
+            print(f"peers_ripple_{k}{suffix}_us {rp[k + '_us']:.3f}")
+            print(f"peers_ripple_{k}{suffix}_compile_ms {rp[k + '_compile_ms']:.3f}")
     print()
-    g_f, g_l, g_vg = gw["gwml_forward_us"], gw["gwml_loss_forward_us"], gw["gwml_value_and_grad_us"]
-    hdr = f"| {'measurement':<34} | {'gwml µs':>9} | {'LAL µs':>9} | {'ripple µs':>9} | {'LAL/gwml':>8} | {'ripple/gwml':>11} |"
+    hdr = f"| {'measurement':<30} | {'gwml µs':>9} | {'LAL µs':>9} | {'ripple µs':>9} | {'LAL/gwml':>8} | {'ripple/gwml':>11} |"
     print(hdr)
     print("|" + "|".join("-" * (len(c)) for c in hdr.split("|")[1:-1]) + "|")
-    print(f"| {'forward (complex strain)':<34} | {g_f:>9.1f} | {lal_us:>9.1f} | {rp['forward_us']:>9.1f} | "
-          f"{lal_us / g_f:>8.2f} | {rp['forward_us'] / g_f:>11.2f} |")
-    print(f"| {'likelihood only':<34} | {g_l:>9.1f} | {'-':>9} | {rp['loss_forward_us']:>9.1f} | "
-          f"{'-':>8} | {rp['loss_forward_us'] / g_l:>11.2f} |")
-    print(f"| {'value_and_grad (Mc, q, tc, phic)':<34} | {g_vg:>9.1f} | {'-':>9} | {rp['value_and_grad_us']:>9.1f} | "
-          f"{'-':>8} | {rp['value_and_grad_us'] / g_vg:>11.2f} |")
-    print()
-    print(f"peers_lal_forward_us {lal_us:.3f}")
-    for k in ("forward", "loss_forward", "value_and_grad"):
-        print(f"peers_ripple_{k}_us {rp[k + '_us']:.3f}")
-        print(f"peers_ripple_{k}_compile_ms {rp[k + '_compile_ms']:.3f}")
+    for name, g, lal_us, rp_us in rows:
+        lal_cell = f"{lal_us:>9.1f}" if lal_us else f"{'-':>9}"
+        lal_ratio = f"{lal_us / g:>8.2f}" if lal_us else f"{'-':>8}"
+        print(f"| {name:<30} | {g:>9.1f} | {lal_cell} | {rp_us:>9.1f} | {lal_ratio} | {rp_us / g:>11.2f} |")
 
 
 if __name__ == "__main__":

@@ -4,11 +4,13 @@
 //!
 //!     cargo bench --bench taylorf2
 //!
-//! Measures (medians over many calls, after warm-up):
-//! - `gwml_forward_us`: the complex strain over the grid (scene `w1_strain`,
-//!   one complex array output, copied out of the kernel as `Outputs` does);
-//! - `gwml_loss_forward_us`: the likelihood 0.5 (d-h|d-h) alone (scene
-//!   `w1_fit`, forward kernel);
+//! Measures (medians over many calls, after warm-up), for the strain with
+//! std::taylorf2's ISCO cut (scenes `w1_strain`, `w1_fit`) and, with the
+//! suffix `_full`, without it (`w1_strain_full`, `w1_fit_full`):
+//! - `gwml_forward_us`: the complex strain over the grid (one complex array
+//!   output, copied out of the kernel as `Outputs` does);
+//! - `gwml_loss_forward_us`: the likelihood 0.5 (d-h|d-h) alone (forward
+//!   kernel);
 //! - `gwml_value_and_grad_us`: that likelihood and its gradient w.r.t.
 //!   (mc, q, tc, phic), one fused kernel call.
 //!
@@ -16,8 +18,10 @@
 //! strain scene first and bound as an input. The PSD is the toy curve of
 //! `examples/taylorf2_fit.gw`, `1e-47 (y^-4 + 2 + 2 y^2)`, y = f / 150 Hz
 //! (bench/peers.py uses the same one). Above the Schwarzschild ISCO (67.6 Hz
-//! for this system) std::taylorf2's amplitude is zero, but every bin is
-//! still evaluated.
+//! for this system) the cut strain is zero: its kernels split their loop
+//! there and evaluate the waveform on the 382 bins below it only (as
+//! LALSimulation does with f_max = 0); the `_full` scenes evaluate it on
+//! all 8,033 bins (as LALSimulation with f_max = 1024 Hz and ripplegw do).
 //!
 //! Lines starting with `gwml_` are machine-readable (`name value`), read by
 //! `bench/peers.py`.
@@ -27,7 +31,7 @@ use gwml::{Model, Value};
 use std::hint::black_box;
 use std::time::Instant;
 
-/// Scenes `w1_strain` and `w1_fit`.
+/// Scenes `w1_strain`, `w1_fit` and their `_full` variants.
 const SOURCE: &str = include_str!("w1.gw");
 
 /// Params of the data (the true W1 system) and of the evaluation point.
@@ -37,11 +41,20 @@ const BINS: usize = 8033;
 
 fn main() {
     let reps: usize = std::env::var("GWML_BENCH_REPS").ok().and_then(|s| s.parse().ok()).unwrap_or(400);
+    println!("taylorf2 W1: 3.5PN, m1 = 36, m2 = 29 Msun, {BINS} bins (20..1024 Hz, df = 1/8 Hz), f64, one thread, median of {reps}");
+    println!("gwml_reps {reps}");
+    for (suffix, what) in [("", "cut at the ISCO"), ("_full", "no cut, every bin")] {
+        measure(reps, suffix, what);
+    }
+}
 
+/// Compiles scenes `w1_strain{suffix}` and `w1_fit{suffix}`, times them and
+/// prints the results, the machine-readable lines with `suffix`.
+fn measure(reps: usize, suffix: &str, what: &str) {
     let t0 = Instant::now();
     let model = Model::from_source("taylorf2_w1.gw", SOURCE).unwrap_or_else(|e| panic!("{e}"));
-    let strain = model.scene(Some("w1_strain")).unwrap_or_else(|e| panic!("{e}"));
-    let fit = model.scene(Some("w1_fit")).unwrap_or_else(|e| panic!("{e}"));
+    let strain = model.scene(Some(&format!("w1_strain{suffix}"))).unwrap_or_else(|e| panic!("{e}"));
+    let fit = model.scene(Some(&format!("w1_fit{suffix}"))).unwrap_or_else(|e| panic!("{e}"));
     let compile_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     // Data: the model at the true params, through the runtime.
@@ -80,8 +93,7 @@ fn main() {
         black_box(frun.value_and_grad().unwrap());
     });
 
-    println!("taylorf2 W1: 3.5PN, m1 = 36, m2 = 29 Msun, {BINS} bins (20..1024 Hz, df = 1/8 Hz), f64, one thread, median of {reps}");
-    println!("  nonzero strain bins (below ISCO): {nonzero}; h[0] = {:.6e}", h[0]);
+    println!("W1, {what}: nonzero strain bins {nonzero}; h[0] = {:.6e}", h[0]);
     println!("  at mc = {}, q = {}, tc = {}, phic = {}:", POINT[0].1, POINT[1].1, POINT[2].1, POINT[3].1);
     println!("  loss {loss:.10e}; dL/dmc {:.6e}, dL/dq {:.6e}, dL/dtc {:.6e}, dL/dphic {:.6e}", grads[0], grads[1], grads[2], grads[3]);
     println!("  {:<36} {:>9.1} ms", "compile (both scenes)", compile_ms);
@@ -89,13 +101,12 @@ fn main() {
     println!("  {:<36} {:>9.1} µs", "gwml forward (likelihood only)", loss_fwd);
     println!("  {:<36} {:>9.1} µs", "gwml value_and_grad (4 params)", vg);
     println!("  value_and_grad / likelihood forward: {:.2}x", vg / loss_fwd);
-    println!("gwml_reps {reps}");
-    println!("gwml_compile_ms {compile_ms:.3}");
-    println!("gwml_forward_us {fwd:.3}");
-    println!("gwml_loss_forward_us {loss_fwd:.3}");
-    println!("gwml_value_and_grad_us {vg:.3}");
-    println!("gwml_loss {loss:.17e}");
+    println!("gwml_compile{suffix}_ms {compile_ms:.3}");
+    println!("gwml_forward{suffix}_us {fwd:.3}");
+    println!("gwml_loss_forward{suffix}_us {loss_fwd:.3}");
+    println!("gwml_value_and_grad{suffix}_us {vg:.3}");
+    println!("gwml_loss{suffix} {loss:.17e}");
     for ((n, _), g) in POINT.iter().zip(&grads) {
-        println!("gwml_grad_{n} {g:.17e}");
+        println!("gwml_grad_{n}{suffix} {g:.17e}");
     }
 }

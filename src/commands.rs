@@ -85,12 +85,19 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
             s.optimized_ops,
             scene.forward_ir().insts.len()
         );
-        println!("kernels: forward {} fused loop{} ({} clif insts)", fk.layout.loops, plural(fk.layout.loops), fk.clif_insts);
+        println!(
+            "kernels: forward {} fused loop{}{} ({} clif insts)",
+            fk.layout.loops,
+            plural(fk.layout.loops),
+            split(&fk.layout),
+            fk.clif_insts
+        );
         if let Some(g) = grad_kernel {
             println!(
-                "         forward+gradient {} fused loop{} ({} clif insts), {} scratch array{}",
+                "         forward+gradient {} fused loop{}{} ({} clif insts), {} scratch array{}",
                 g.layout.loops,
                 plural(g.layout.loops),
+                split(&g.layout),
                 g.clif_insts,
                 scratch(g),
                 plural(scratch(g))
@@ -110,6 +117,14 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
 
 fn scratch(k: &gwml::compiler::codegen::Kernel) -> usize {
     k.layout.buffers.iter().filter(|b| b.kind == gwml::compiler::codegen::BufferKind::Scratch).count()
+}
+
+/// `", N split at an interval condition"` when a kernel splits loops.
+fn split(layout: &gwml::compiler::codegen::Layout) -> String {
+    match layout.split_loops {
+        0 => String::new(),
+        n => format!(", {n} split at an interval condition"),
+    }
 }
 
 fn plural(n: usize) -> &'static str {

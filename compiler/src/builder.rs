@@ -226,7 +226,88 @@ impl Builder {
             Op::PowConst(a, c) if f64::from_bits(c) == 1.0 => Some(a),
             Op::PowConst(_, c) if f64::from_bits(c) == 0.0 => Some(self.constant(C64::new(1.0, 0.0), ty)),
             Op::Select(_, a, b) if a == b => Some(a),
+            // A select on the condition already tested takes the same side.
+            Op::Select(c, a, b) if matches!(self.func.insts[a.index()].op, Op::Select(k, ..) if k == c) => {
+                let Op::Select(_, inner, _) = self.func.insts[a.index()].op else { unreachable!() };
+                Some(self.emit(Op::Select(c, inner, b)))
+            }
+            Op::Select(c, a, b) if matches!(self.func.insts[b.index()].op, Op::Select(k, ..) if k == c) => {
+                let Op::Select(_, _, inner) = self.func.insts[b.index()].op else { unreachable!() };
+                Some(self.emit(Op::Select(c, a, inner)))
+            }
             Op::Select(c, a, b) => self.const_truth(c).map(|k| if k { a } else { b }),
+            _ => None,
+        }
+        .or_else(|| self.sink_mask(op))
+    }
+
+    /// `v` as an array masked by an interval condition
+    /// ([`Function::interval_condition`]), `select(c, a, 0)` or
+    /// `select(c, 0, a)`: the condition, `a`, and whether `a` is kept
+    /// where `c` holds.
+    fn mask_of(&self, v: Value) -> Option<(Value, Value, bool)> {
+        let (c, a, kept) = match self.func.insts[v.index()].op {
+            Op::Select(c, a, z) if self.is_const(z, 0.0) => (c, a, true),
+            Op::Select(c, z, a) if self.is_const(z, 0.0) => (c, a, false),
+            _ => return None,
+        };
+        self.func.interval_condition(c).map(|_| (c, a, kept))
+    }
+
+    /// `inner` masked by condition `c` as [`Builder::mask_of`] describes.
+    fn remask(&mut self, c: Value, inner: Value, kept: bool) -> Value {
+        let zero = self.zero(self.ty(inner));
+        self.emit(if kept { Op::Select(c, inner, zero) } else { Op::Select(c, zero, inner) })
+    }
+
+    /// Sinks a mask through an op that maps zero to zero:
+    /// `op(select(c, a, 0), y) → select(c, op(a, y), 0)` for products,
+    /// quotients, negation, conjugation, parts, `abs`, `abs2`, `sqrt`,
+    /// `sign` and positive powers, and for sums, differences and
+    /// `complex(·, ·)` of two arrays masked alike. Where the mask is off,
+    /// the result is zero even if `y` is not finite there: the mask
+    /// states that the value is zero, and a zero times anything is taken
+    /// as zero (as the `0 · y → 0` rule above does). This keeps masked
+    /// work (a waveform cut at the ISCO and its adjoint) behind the one
+    /// condition codegen splits the loop on; other masks stay put.
+    fn sink_mask(&mut self, op: &Op) -> Option<Value> {
+        match *op {
+            Op::Unary(u, a)
+                if matches!(
+                    u,
+                    UnOp::Neg | UnOp::Conj | UnOp::Re | UnOp::Im | UnOp::ToComplex | UnOp::Abs | UnOp::Abs2 | UnOp::Sqrt | UnOp::Sign
+                ) =>
+            {
+                let (c, inner, kept) = self.mask_of(a)?;
+                let v = self.emit(Op::Unary(u, inner));
+                Some(self.remask(c, v, kept))
+            }
+            Op::PowConst(a, k) if f64::from_bits(k) > 0.0 => {
+                let (c, inner, kept) = self.mask_of(a)?;
+                let v = self.emit(Op::PowConst(inner, k));
+                Some(self.remask(c, v, kept))
+            }
+            Op::Binary(BinOp::Mul, x, y) => {
+                let (c, v, kept) = match (self.mask_of(x), self.mask_of(y)) {
+                    (Some((c, inner, kept)), _) => (c, self.emit(Op::Binary(BinOp::Mul, inner, y)), kept),
+                    (None, Some((c, inner, kept))) => (c, self.emit(Op::Binary(BinOp::Mul, x, inner)), kept),
+                    (None, None) => return None,
+                };
+                Some(self.remask(c, v, kept))
+            }
+            Op::Binary(BinOp::Div, x, y) => {
+                let (c, inner, kept) = self.mask_of(x)?;
+                let v = self.emit(Op::Binary(BinOp::Div, inner, y));
+                Some(self.remask(c, v, kept))
+            }
+            Op::Binary(b @ (BinOp::Add | BinOp::Sub | BinOp::Complex), x, y) => {
+                let ((cx, ix, kx), (cy, iy, ky)) = (self.mask_of(x)?, self.mask_of(y)?);
+                if (cx, kx) != (cy, ky) {
+                    return None;
+                }
+                let v = self.emit(Op::Binary(b, ix, iy));
+                Some(self.remask(cx, v, kx))
+            }
             _ => None,
         }
     }

@@ -89,6 +89,9 @@ pub struct Layout {
     pub scalar_slots: usize,
     /// Number of fused loops.
     pub loops: usize,
+    /// How many of them are split at an interval condition (emitted once
+    /// for each side of it, see `Gen::emit_loop`).
+    pub split_loops: usize,
     /// The scene's precision (each buffer states its element type).
     pub precision: Precision,
     /// Per entry of [`Function::input_grads`], the buffer holding it
@@ -205,6 +208,45 @@ struct Schedule {
     calls: Vec<Vec<usize>>,
     /// Per call: its plan (index into the kernel's plans) and work buffer.
     call_plans: HashMap<usize, (usize, Option<usize>)>,
+    /// Per loop: the interval condition it is split on, if any, and whether
+    /// it holds on the grid's first points (see [`Gen::emit_loop`]).
+    splits: Vec<Option<(usize, bool)>>,
+}
+
+impl Schedule {
+    /// Whether array value `i` is read from the buffer an earlier loop
+    /// stored it to, in a loop of `epoch`.
+    fn reloaded(&self, i: usize, epoch: u32) -> bool {
+        self.stored.contains_key(&i) && self.epoch[i] < epoch
+    }
+
+    /// The interval condition loop `l` is split on, if any: the first (by
+    /// instruction) that a select computed in the loop tests, on the
+    /// loop's grid, with whether it holds on the grid's first points.
+    fn split_condition(&self, func: &Function, l: usize) -> Option<(usize, bool)> {
+        let (epoch, grid, ref members) = self.loops[l];
+        let mut seen = std::collections::HashSet::new();
+        let mut stack: Vec<usize> = members.clone();
+        let mut best: Option<(usize, bool)> = None;
+        while let Some(i) = stack.pop() {
+            let inst = func.insts[i];
+            if inst.ty.shape == Shape::Scalar && !matches!(inst.op, Op::Reduce(..)) || !seen.insert(i) {
+                continue;
+            }
+            if on_demand(&inst.op) || is_call(&inst.op) || (self.reloaded(i, epoch) && !members.contains(&i)) {
+                continue;
+            }
+            if let Op::Select(c, ..) = inst.op {
+                if let Some((g, first)) = func.interval_condition(c) {
+                    if g == grid && best.is_none_or(|(b, _)| c.index() < b) {
+                        best = Some((c.index(), first));
+                    }
+                }
+            }
+            stack.extend(inst.op.operands().iter().map(|v| v.index()));
+        }
+        best
+    }
 }
 
 fn on_demand(op: &Op) -> bool {
@@ -345,7 +387,10 @@ fn schedule(func: &Function, wide: &[bool], layout: &mut Layout, plans: &mut Vec
             }
         }
     }
-    Schedule { epoch, loops, scalars, stored, calls, call_plans }
+    let mut sched = Schedule { epoch, loops, scalars, stored, calls, call_plans, splits: Vec::new() };
+    sched.splits = (0..sched.loops.len()).map(|l| sched.split_condition(func, l)).collect();
+    layout.split_loops = sched.splits.iter().flatten().count();
+    sched
 }
 
 /// A value in generated code: real part, and imaginary part for complex.
@@ -440,8 +485,15 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
         ctx.func.signature.params.push(AbiParam::new(ptr));
     }
     let id = module.declare_function("gwml_kernel", Linkage::Export, &ctx.func.signature).map_err(|e| err(&e))?;
-    let mut layout =
-        Layout { buffers: Vec::new(), scalars: Vec::new(), scalar_slots: 0, loops: 0, precision: func.precision, input_grads: Vec::new() };
+    let mut layout = Layout {
+        buffers: Vec::new(),
+        scalars: Vec::new(),
+        scalar_slots: 0,
+        loops: 0,
+        split_loops: 0,
+        precision: func.precision,
+        input_grads: Vec::new(),
+    };
     let storage = func.precision.storage();
     let wide = func.wide_values();
     for (i, input) in func.inputs.iter().enumerate() {
@@ -572,7 +624,14 @@ struct LoopCtx {
     vals: HashMap<usize, Cv>,
     /// In a split loop: values as two f64x2 halves (lanes 0–1, 2–3).
     halves: HashMap<usize, [Cv; 2]>,
+    /// An interval condition whose truth is known over the index range
+    /// being emitted (see [`Gen::emit_loop`]): selects on it take one side.
+    known: Option<(usize, bool)>,
 }
+
+/// The accumulators of a loop's reductions: real part, and imaginary part
+/// (or, in f32x4 loops, lanes 2–3).
+type Accs = Vec<(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Value>)>;
 
 impl<'a> Gen<'a> {
     fn f32(&self) -> bool {
@@ -1013,6 +1072,17 @@ impl<'a> Gen<'a> {
 
     /// Emits loop `l`: when [`Gen::vector_lane`] allows, a vectorised loop
     /// over as many whole vectors as fit, then a scalar loop over the rest.
+    ///
+    /// A loop whose selects test an interval condition (the ISCO cut
+    /// `f <= f_isco`, see [`Function::interval_condition`]) is *split*:
+    /// the kernel finds the index where the condition changes by a binary
+    /// search over the grid (evaluating the condition exactly as the loop
+    /// would, so the split agrees with it point by point), and emits the
+    /// loop once for each side with the selects resolved. What a select
+    /// throws away is then not computed at all: above the ISCO, the
+    /// waveform's phase and, since `Builder` sinks the mask through
+    /// products, every term of its adjoint. Reductions run on each side
+    /// from zero and are added at the end.
     fn emit_loop(&mut self, l: usize) -> Result<(), CodegenError> {
         let (_, grid, ref members) = self.sched.loops[l];
         let len = self.func.grids[grid.0 as usize].len as i64;
@@ -1023,19 +1093,81 @@ impl<'a> Gen<'a> {
                 _ => None,
             })
             .collect();
+        let (zero, n) = (self.b.ins().iconst(types::I64, 0), self.b.ins().iconst(types::I64, len));
+        let mut total: Option<Accs> = None;
+        let ranges = match self.sched.splits[l] {
+            Some((c, first)) => {
+                let k = self.split_point(l, c, first, len);
+                vec![(zero, k, Some((c, first))), (k, n, Some((c, !first)))]
+            }
+            None => vec![(zero, n, None)],
+        };
+        let whole = ranges.len() == 1;
+        for (from, to, known) in ranges {
+            let accs = self.emit_loop_part(l, (from, to), whole.then_some(len), known, &reductions)?;
+            total = Some(match total {
+                None => accs,
+                Some(before) => before
+                    .into_iter()
+                    .zip(accs)
+                    .zip(&reductions)
+                    .map(|(((re0, im0), (re1, im1)), &(_, r, _))| {
+                        let re = self.reduce_step(r, re0, re1);
+                        let im = im0.zip(im1).map(|(a, b)| self.b.ins().fadd(a, b));
+                        (re, im)
+                    })
+                    .collect(),
+            });
+        }
+        for (&(m, ..), (re, im)) in reductions.iter().zip(total.unwrap_or_default()) {
+            let ty = self.ty_of(m);
+            let re = self.cast(re, ty);
+            let im = im.map(|x| self.cast(x, ty));
+            self.vals.insert(m, Cv { re, im });
+        }
+        Ok(())
+    }
+
+    /// Loop `l` over indices `from..to` (`len`, when the range is the whole
+    /// grid, lets the vector and scalar parts be sized at compile time),
+    /// with `known` resolving selects; returns the reductions' partial
+    /// results, accumulated from zero (−∞ for a maximum).
+    fn emit_loop_part(
+        &mut self,
+        l: usize,
+        (from, to): (cranelift_codegen::ir::Value, cranelift_codegen::ir::Value),
+        len: Option<i64>,
+        known: Option<(usize, bool)>,
+        reductions: &[(usize, Reduce, bool)],
+    ) -> Result<Accs, CodegenError> {
         // Accumulators of reductions (f64 even in f32 mode).
-        let mut accs: Vec<(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Value>)> = reductions
+        let mut accs: Accs = reductions
             .iter()
             .map(|&(_, r, complex)| {
                 let init = if r == Reduce::Max { f64::NEG_INFINITY } else { 0.0 };
                 (self.b.ins().f64const(init), complex.then(|| self.b.ins().f64const(0.0)))
             })
             .collect();
-        let mut start = 0;
+        let mut start = from;
+        // Whether the scalar loop has nothing left to do, known statically.
+        let mut no_tail = len == Some(0);
         if let Some(lane) = self.vector_lane(l) {
             let lanes = (16 / lane.bytes()) as i64;
-            let end = len - len % lanes;
-            if end > 0 {
+            // The end of the whole vectors: statically when the range is
+            // the grid, else `from + (to − from) & −lanes`.
+            let end = match len {
+                Some(len) if len < lanes => None,
+                Some(len) => {
+                    no_tail = len % lanes == 0;
+                    Some(self.b.ins().iconst(types::I64, len - len % lanes))
+                }
+                None => {
+                    let count = self.b.ins().isub(to, from);
+                    let whole = self.b.ins().band_imm_s(count, -lanes);
+                    Some(self.b.ins().iadd(from, whole))
+                }
+            };
+            if let Some(end) = end {
                 // Vectorised reductions accumulate in f64x2: complex ones
                 // (f64 loops only) in two, re and im; real f32x4 ones in
                 // two as well, lanes 0–1 and 2–3, the second in the slot of
@@ -1052,11 +1184,11 @@ impl<'a> Gen<'a> {
                     })
                     .collect();
                 self.vector = Some(lane);
-                let out = self.emit_loop_range(l, (0, end), lanes, &init);
+                let out = self.emit_loop_range(l, (from, end), lanes, known, &init);
                 self.vector = None;
                 let out = out?;
                 accs = Vec::new();
-                for ((v, second), &(_, r, complex)) in out.into_iter().zip(&reductions) {
+                for ((v, second), &(_, r, complex)) in out.into_iter().zip(reductions) {
                     accs.push(match second {
                         Some(im) if complex => (self.horizontal(r, v), Some(self.horizontal(r, im))),
                         Some(high) => {
@@ -1069,16 +1201,43 @@ impl<'a> Gen<'a> {
                 start = end;
             }
         }
-        if start < len {
-            accs = self.emit_loop_range(l, (start, len), 1, &accs)?;
+        if !no_tail {
+            accs = self.emit_loop_range(l, (start, to), 1, known, &accs)?;
         }
-        for (&(m, ..), (re, im)) in reductions.iter().zip(accs) {
-            let ty = self.ty_of(m);
-            let re = self.cast(re, ty);
-            let im = im.map(|x| self.cast(x, ty));
-            self.vals.insert(m, Cv { re, im });
-        }
-        Ok(())
+        Ok(accs)
+    }
+
+    /// The first index of loop `l`'s grid (of `len` points) where
+    /// condition `c` no longer has the value `first` it has on the grid's
+    /// first points (`len` if none): a binary search, each step
+    /// evaluating `c` as the loop's scalar code would.
+    fn split_point(&mut self, l: usize, c: usize, first: bool, len: i64) -> cranelift_codegen::ir::Value {
+        let (lo, hi) = (self.b.declare_var(types::I64), self.b.declare_var(types::I64));
+        let zero = self.b.ins().iconst(types::I64, 0);
+        let n = self.b.ins().iconst(types::I64, len);
+        self.b.def_var(lo, zero);
+        self.b.def_var(hi, n);
+        let (header, body, exit) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(header);
+        let (a, b) = (self.b.use_var(lo), self.b.use_var(hi));
+        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, a, b);
+        self.b.ins().brif(done, exit, &[], body, &[]);
+        self.b.switch_to_block(body);
+        let sum = self.b.ins().iadd(a, b);
+        let mid = self.b.ins().ushr_imm_u(sum, 1);
+        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: mid, vals: HashMap::new(), halves: HashMap::new(), known: None };
+        let ft = self.ft;
+        let holds = self.loop_operand(&mut lc, Value(c as u32)).expect("an interval condition is a comparison").re;
+        self.ft = ft;
+        let same = if first { holds } else { self.b.ins().icmp_imm_s(IntCC::Equal, holds, 0) };
+        let after = self.b.ins().iadd_imm_s(mid, 1);
+        let (a2, b2) = (self.b.ins().select(same, after, a), self.b.ins().select(same, b, mid));
+        self.b.def_var(lo, a2);
+        self.b.def_var(hi, b2);
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(exit);
+        self.b.use_var(lo)
     }
 
     /// One loop of `l`'s members over indices `from..to` in steps of
@@ -1087,10 +1246,11 @@ impl<'a> Gen<'a> {
     fn emit_loop_range(
         &mut self,
         l: usize,
-        (from, to): (i64, i64),
+        (from, to): (cranelift_codegen::ir::Value, cranelift_codegen::ir::Value),
         step: i64,
+        known: Option<(usize, bool)>,
         init: &[(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Value>)],
-    ) -> Result<Vec<(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Value>)>, CodegenError> {
+    ) -> Result<Accs, CodegenError> {
         let members = self.sched.loops[l].2.clone();
         let mut accs: Vec<(usize, Variable, Option<Variable>)> = Vec::new();
         let reductions = members.iter().filter(|&&m| matches!(self.func.insts[m].op, Op::Reduce(..)));
@@ -1105,8 +1265,7 @@ impl<'a> Gen<'a> {
             accs.push((m, re, im));
         }
         let ivar = self.b.declare_var(types::I64);
-        let first = self.b.ins().iconst(types::I64, from);
-        self.b.def_var(ivar, first);
+        self.b.def_var(ivar, from);
         let header = self.b.create_block();
         let body = self.b.create_block();
         let exit = self.b.create_block();
@@ -1121,10 +1280,10 @@ impl<'a> Gen<'a> {
         // that puts the exit first when the body is the taken branch. With
         // that order, 2 values were hoisted in W1's strain kernel; with
         // this one, 131 (and the kernel runs ~20 % faster).
-        let done = self.b.ins().icmp_imm_s(IntCC::SignedGreaterThanOrEqual, i, to);
+        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, i, to);
         self.b.ins().brif(done, exit, &[], body, &[]);
         self.b.switch_to_block(body);
-        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: i, vals: HashMap::new(), halves: HashMap::new() };
+        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: i, vals: HashMap::new(), halves: HashMap::new(), known };
         for &m in &members {
             let inst = self.func.insts[m];
             if let Op::Reduce(r, a) = inst.op {
@@ -1152,6 +1311,11 @@ impl<'a> Gen<'a> {
                     let next = self.b.ins().fadd(acc, xi);
                     self.b.def_var(iv, next);
                 }
+                continue;
+            }
+            // With a condition known, only what is stored is emitted (and
+            // what that needs, on demand): the rest may be thrown away.
+            if known.is_some() && !self.sched.stored.contains_key(&m) {
                 continue;
             }
             if self.split(m) {
@@ -1332,6 +1496,11 @@ impl<'a> Gen<'a> {
                 None => x,
             });
         }
+        if let Some(taken) = self.resolved(lc, i) {
+            let x = self.loop_operand(lc, taken)?;
+            lc.vals.insert(i, x);
+            return Ok(x);
+        }
         if self.split(i) {
             let halves = self.wide_operand(lc, v)?;
             let x = self.demote_cv(halves);
@@ -1390,6 +1559,16 @@ impl<'a> Gen<'a> {
         Ok(x)
     }
 
+    /// The side a select `i` takes when its condition is known over the
+    /// range being emitted.
+    fn resolved(&self, lc: &LoopCtx, i: usize) -> Option<Value> {
+        let (c, holds) = lc.known?;
+        match self.func.insts[i].op {
+            Op::Select(k, a, b) if k.index() == c => Some(if holds { a } else { b }),
+            _ => None,
+        }
+    }
+
     /// Whether array value `i` is split in the loop being emitted: computed
     /// in f64 (mixed precision) inside an f32x4 loop.
     fn split(&self, i: usize) -> bool {
@@ -1399,7 +1578,7 @@ impl<'a> Gen<'a> {
     /// Whether array value `i` is read from the buffer an earlier loop
     /// stored it to, in a loop of `epoch`.
     fn reloaded(&self, i: usize, epoch: u32) -> bool {
-        self.sched.stored.contains_key(&i) && self.sched.epoch[i] < epoch
+        self.sched.reloaded(i, epoch)
     }
 
     /// In a split loop: value `v` as two f64x2 halves, lanes 0–1 and 2–3
@@ -1412,7 +1591,9 @@ impl<'a> Gen<'a> {
             return Ok(*h);
         }
         let inst = self.func.insts[i];
-        let halves = if inst.ty.shape == Shape::Scalar {
+        let halves = if let Some(taken) = self.resolved(lc, i) {
+            self.wide_operand(lc, taken)?
+        } else if inst.ty.shape == Shape::Scalar {
             let x = self.vals[&i];
             let x = self.in_f64(|g| g.splat_cv(x, types::F64));
             [x, x]

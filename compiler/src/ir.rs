@@ -629,6 +629,44 @@ impl Function {
         self.insts[v.index()].ty
     }
 
+    /// Whether array `v` is the same at every grid point: a broadcast
+    /// scalar, or elementwise arithmetic on such (as `passes::rescale`
+    /// writes a scaled scalar), looking at most `depth` ops deep.
+    pub fn is_uniform(&self, v: Value, depth: u32) -> bool {
+        match self.insts[v.index()].op {
+            Op::Broadcast(..) => true,
+            op @ (Op::Unary(..) | Op::Binary(..) | Op::PowConst(..)) if depth > 0 => {
+                op.operands().iter().all(|&a| self.is_uniform(a, depth - 1))
+            }
+            _ => false,
+        }
+    }
+
+    /// Whether the truth value `c` is an *interval condition*: an order
+    /// comparison of a grid's coordinates with a uniform value
+    /// ([`Function::is_uniform`]: a broadcast scalar), such as
+    /// the ISCO cut `f <= f_isco`. Coordinates `start + i·step` are
+    /// monotone in `i`, so such a condition holds on a prefix or a suffix
+    /// of the grid. Returns the grid and whether the points where `c`
+    /// holds come first.
+    pub fn interval_condition(&self, c: Value) -> Option<(GridId, bool)> {
+        let Op::Binary(op, x, y) = self.insts[c.index()].op else { return None };
+        let below = match op {
+            BinOp::Lt | BinOp::Le => true,
+            BinOp::Gt | BinOp::Ge => false,
+            _ => return None,
+        };
+        let is_scalar = |v: Value| self.is_uniform(v, 4);
+        let (grid, coord_left) = match (self.insts[x.index()].op, self.insts[y.index()].op) {
+            (Op::GridCoord(g), _) if is_scalar(y) => (g, true),
+            (_, Op::GridCoord(g)) if is_scalar(x) => (g, false),
+            _ => return None,
+        };
+        // `coord < s` holds first on an increasing grid; `s < coord` last.
+        let increasing = self.grids[grid.0 as usize].step >= 0.0;
+        Some((grid, below == coord_left && increasing || below != coord_left && !increasing))
+    }
+
     /// The number of elements a value of shape `s` holds.
     pub fn len_of(&self, s: Shape) -> usize {
         match s {

@@ -669,6 +669,51 @@ fn grad_select_and_if() {
     check_formula("sum(select(x > 0.0, x * (g / 1 Hz), y * (g / 1 Hz)))", &pts, Cs::No);
 }
 
+/// A mask on an interval condition (`g <= 2.5 Hz`, `g > 1.5 Hz`) sinks
+/// through what keeps zero zero (products, quotients, negation,
+/// conjugation, parts, abs, abs2, sqrt, positive powers, sums of arrays
+/// masked alike, `complex`): the gradients stay right, and every grid sum of
+/// the optimized adjoint reads a select on that condition (which codegen
+/// splits its loop on).
+#[test]
+fn grad_through_sunk_interval_masks() {
+    let pts = signed_points(33);
+    let prelude = "module m(g: Hz, x, y) { if g <= 2.5 Hz { x * y * (g / 1 Hz) + x } else { 0.0 } }
+        module n(g: Hz, x) { if 1.5 Hz < g { 0.0 } else { x * x } }";
+    // With whether every grid sum of the gradients is zero outside one mask.
+    let formulas = [
+        ("sum(re(conj(complex(m(g, x, y), m(g, x, y) * y) * cis(x * (g / 1 Hz)))) / (y * y + 2.0))", true),
+        ("sum(abs2(-(m(g, x, y) * 1.0i)) * exp(y) + (m(g, x, y) - m(g, y, x)) ^ 3.0 / x)", true),
+        ("sum(sqrt(abs(m(g, x, y)) + 1.0) * y + n(g, x) * sin(y * (g / 1 Hz)))", false),
+    ];
+    for (formula, all_masked) in formulas {
+        let pl = compile_formula(prelude, formula);
+        for &(x, y) in &pts {
+            check_point(&pl, formula, &[x, y], &[], "out", &["x", "y"], Cs::No, Fd::Relative);
+        }
+        let f = &pl.optimized;
+        let masked_sums = f.grads.iter().filter_map(|g| g.value).all(|g| {
+            let mut stack = vec![g];
+            let mut seen = std::collections::HashSet::new();
+            while let Some(v) = stack.pop() {
+                if !seen.insert(v) {
+                    continue;
+                }
+                let op = f.insts[v.index()].op;
+                if let Op::Reduce(Reduce::Sum, a) = op {
+                    let Op::Select(c, ..) = f.insts[a.index()].op else { return false };
+                    if f.interval_condition(c).is_none() {
+                        return false;
+                    }
+                }
+                stack.extend(op.operands());
+            }
+            true
+        });
+        assert!(masked_sums || !all_masked, "{formula}: a grid sum of the adjoint is not masked:\n{f}");
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Grids: broadcasting and reductions
 // ---------------------------------------------------------------------------
