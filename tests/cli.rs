@@ -99,6 +99,11 @@ fn compile_emits_every_stage_and_stats() {
     let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--stats"]);
     assert!(ok);
     assert!(out.contains("ops: checked") && out.contains("fused loop") && out.contains("time:"), "{out}");
+    assert!(!out.contains("split at"), "chirp_fit has no cut, yet a loop is split:\n{out}");
+    // std::taylorf2's ISCO cut splits both kernels' loop.
+    let (ok, out, _) = gwml(&["compile", "examples/taylorf2_tradeoff.gw", "--stats"]);
+    assert!(ok);
+    assert_eq!(out.matches("1 split at an interval condition").count(), 2, "{out}");
     let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--precision", "f32"]);
     assert!(ok && out.contains("precision f32"), "{out}");
 }
