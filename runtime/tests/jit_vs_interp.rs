@@ -755,7 +755,7 @@ fn mixed_loops_split_f64_values_into_f64x2_halves() {
 /// on, between and after the grid's points (and NaN, false everywhere),
 /// in f64 (f64x2 + tail), f32 and mixed (f32x4 + tail, whose sides start
 /// at unaligned indices): outputs agree with the interpreter point by
-/// point, the loss and gradients to rounding.
+/// point, the loss, a maximum, a complex sum and the gradient to rounding.
 #[test]
 fn loops_split_at_interval_conditions_match_interpreter() {
     let step = 1.0 / 61.0;
@@ -773,6 +773,8 @@ fn loops_split_at_interval_conditions_match_interpreter() {
                 let h = if {cond} {{ a * sin(7.0 * u) * u }} else {{ 0.0 }}
                 output w = h
                 output loss = sum((d - h) ^ 2.0) + sum(h * u)
+                output top = max(h + u)
+                output z = sum(h * cis(3.0 * u))
                 grad loss wrt [a]
             }}"
         );
@@ -796,6 +798,12 @@ fn loops_split_at_interval_conditions_match_interpreter() {
                 }
                 let want = r.output(f, "loss").unwrap()[0].re;
                 assert!(rel(out.scalar("loss").unwrap(), want) < tol, "{case}: loss {} vs {want}", out.scalar("loss").unwrap());
+                // A maximum and a complex sum, each combined across the two sides.
+                let want = r.output(f, "top").unwrap()[0].re;
+                assert!(rel(out.scalar("top").unwrap(), want) < tol, "{case}: top {} vs {want}", out.scalar("top").unwrap());
+                let Ok(Value::Complex(z)) = out.value("z") else { panic!("z is a complex scalar") };
+                let want = r.output(f, "z").unwrap()[0];
+                assert!((z - want).norm() <= tol * want.norm().max(1.0), "{case}: z {z} vs {want}");
                 let (g, w) = (out.grad("loss", "a").unwrap(), r.grad(f, "loss", "a").unwrap());
                 assert!((g - w).abs() <= tol * w.abs().max(1.0), "{case}: d/da {g} vs {w}");
             }
