@@ -233,7 +233,7 @@ impl Schedule {
             if inst.ty.shape == Shape::Scalar && !matches!(inst.op, Op::Reduce(..)) || !seen.insert(i) {
                 continue;
             }
-            if on_demand(&inst.op) || is_call(&inst.op) || (self.reloaded(i, epoch) && !members.contains(&i)) {
+            if on_demand(&inst.op) || is_call(&inst.op) || self.reloaded(i, epoch) {
                 continue;
             }
             if let Op::Select(c, ..) = inst.op {
@@ -1097,7 +1097,7 @@ impl<'a> Gen<'a> {
         let mut total: Option<Accs> = None;
         let ranges = match self.sched.splits[l] {
             Some((c, first)) => {
-                let k = self.split_point(l, c, first, len);
+                let k = self.split_point(l, c, first, (zero, n));
                 vec![(zero, k, Some((c, first))), (k, n, Some((c, !first)))]
             }
             None => vec![(zero, n, None)],
@@ -1207,14 +1207,18 @@ impl<'a> Gen<'a> {
         Ok(accs)
     }
 
-    /// The first index of loop `l`'s grid (of `len` points) where
+    /// The first index of loop `l`'s grid (indices `zero..n`) where
     /// condition `c` no longer has the value `first` it has on the grid's
-    /// first points (`len` if none): a binary search, each step
-    /// evaluating `c` as the loop's scalar code would.
-    fn split_point(&mut self, l: usize, c: usize, first: bool, len: i64) -> cranelift_codegen::ir::Value {
+    /// first points (`n` if none): a binary search, each step evaluating
+    /// `c` as the loop's scalar code would.
+    fn split_point(
+        &mut self,
+        l: usize,
+        c: usize,
+        first: bool,
+        (zero, n): (cranelift_codegen::ir::Value, cranelift_codegen::ir::Value),
+    ) -> cranelift_codegen::ir::Value {
         let (lo, hi) = (self.b.declare_var(types::I64), self.b.declare_var(types::I64));
-        let zero = self.b.ins().iconst(types::I64, 0);
-        let n = self.b.ins().iconst(types::I64, len);
         self.b.def_var(lo, zero);
         self.b.def_var(hi, n);
         let (header, body, exit) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
