@@ -17,8 +17,18 @@ pub(crate) fn render(e: Error) -> String {
     }
 }
 
-pub(crate) fn options(k: KnobArgs) -> Options {
-    Options {
+/// Splits `NAME=VALUE` at its first `=` (both sides trimmed, neither empty).
+pub(crate) fn knob_assignment(s: &str, flag: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((n, v)) if !n.trim().is_empty() && !v.trim().is_empty() => Ok((n.trim().to_string(), v.trim().to_string())),
+        _ => Err(format!("error: {flag} `{s}`: expected NAME=VALUE, e.g. {flag} pn_order=5")),
+    }
+}
+
+pub(crate) fn options(k: KnobArgs) -> Result<Options, String> {
+    let knobs = k.knobs.iter().map(|s| knob_assignment(s, "--knob")).collect::<Result<Vec<_>, _>>()?;
+    Ok(Options {
+        knobs,
         precision: k.precision.map(|p| match p {
             PrecisionArg::F64 => Precision::F64,
             PrecisionArg::F32 => Precision::F32,
@@ -29,7 +39,7 @@ pub(crate) fn options(k: KnobArgs) -> Options {
             MathArg::Fast => MathMode::Fast,
             MathArg::Fastest => MathMode::Fastest,
         }),
-    }
+    })
 }
 
 /// `gwml compile`.
@@ -42,7 +52,7 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
         return Ok(());
     }
     let t1 = Instant::now();
-    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
     let t_fwd = t1.elapsed();
     let has_grads = scene.ir().has_gradients();
     let t2 = Instant::now();
@@ -145,7 +155,7 @@ pub(crate) fn split_pair<'a>(s: &'a str, flag: &str) -> Result<(&'a str, &'a str
 /// `gwml run`.
 pub fn run(a: RunArgs) -> Result<(), String> {
     let model = Model::from_file(&a.file).map_err(render)?;
-    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
     let mut run = scene.bind();
     bind_args(&mut run, &a.bind)?;
     let out = if a.grad { run.value_and_grad() } else { run.forward() }.map_err(render)?;
@@ -292,7 +302,7 @@ fn spectrum_source(source: &str) -> Option<(gwml::spectrum::Kind, &str)> {
 pub fn fit(a: FitArgs) -> Result<(), String> {
     use gwml_runtime::fit::{fit_run, Optimizer, Settings};
     let model = Model::from_file(&a.file).map_err(render)?;
-    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
     let mut run = scene.bind();
     bind_args(&mut run, &a.bind)?;
     let optimizer = match a.optimizer {
@@ -458,17 +468,37 @@ fn num(x: f64) -> String {
 
 /// `gwml tradeoff`.
 pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
-    use gwml::tradeoff::{all_configs, csv, sweep, table, Config, Settings};
+    use gwml::tradeoff::{all_configs, csv, sweep, table, with_knob_sweeps, Config, Settings};
     let model = Model::from_file(&a.file).map_err(render)?;
-    let knobs = |p: Option<PrecisionArg>, m: Option<MathArg>| options(KnobArgs { precision: p, math: m });
+    let knobs = |p: Option<PrecisionArg>, m: Option<MathArg>| options(KnobArgs { precision: p, math: m, knobs: Vec::new() });
     let configs: Vec<Config> = all_configs()
         .into_iter()
-        .filter(|c| a.precision.is_empty() || a.precision.iter().any(|p| knobs(Some(*p), None).precision == Some(c.precision)))
-        .filter(|c| a.math.is_empty() || a.math.iter().any(|m| knobs(None, Some(*m)).math == Some(c.math)))
+        .filter(|c| {
+            a.precision.is_empty() || a.precision.iter().any(|p| knobs(Some(*p), None).is_ok_and(|o| o.precision == Some(c.precision)))
+        })
+        .filter(|c| a.math.is_empty() || a.math.iter().any(|m| knobs(None, Some(*m)).is_ok_and(|o| o.math == Some(c.math))))
         .collect();
+    let mut sweeps = Vec::new();
+    for s in &a.sweep {
+        let (name, values) = knob_assignment(s, "--sweep")?;
+        sweeps.push((name, values.split(',').map(|v| v.trim().to_string()).filter(|v| !v.is_empty()).collect::<Vec<_>>()));
+    }
+    // Each swept value must be a valid override: report a bad name or value
+    // once, with its source, instead of in every row.
+    for (name, values) in &sweeps {
+        if values.is_empty() {
+            return Err(format!("error: --sweep {name}: no values; write --sweep {name}=V1,V2,..."));
+        }
+        for v in values {
+            model
+                .scene_with(a.scene.as_deref(), Options { knobs: vec![(name.clone(), v.clone())], ..Default::default() })
+                .map_err(render)?;
+        }
+    }
+    let configs = with_knob_sweeps(configs, &sweeps);
     let settings = Settings { configs, reps: a.reps, psd: a.psd.clone() };
     let bind = |run: &mut gwml::Run| bind_args(run, &a.bind).map_err(Error::Bind);
-    let mut progress = |i: usize, count: usize, c: Config| eprintln!("[{}/{count}] precision {}, math {}", i + 1, c.precision, c.math);
+    let mut progress = |i: usize, count: usize, c: &Config| eprintln!("[{}/{count}] {}", i + 1, c.label());
     let rows = sweep(&model, a.scene.as_deref(), &settings, &bind, &mut progress).map_err(|e| match e {
         Error::Bind(m) if m.starts_with("error:") => m,
         other => render(other),
@@ -482,7 +512,8 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
         let items: Vec<serde_json::Value> = rows
             .iter()
             .map(|r| {
-                json!({"precision": r.config.precision.to_string(), "math": r.config.math.to_string(), "forward_us": r.forward_us,
+                let knobs: serde_json::Map<String, serde_json::Value> = r.config.knobs.iter().map(|(n, v)| (n.clone(), json!(v))).collect();
+                json!({"precision": r.config.precision.to_string(), "math": r.config.math.to_string(), "knobs": knobs, "forward_us": r.forward_us,
                        "grad_us": r.grad_us, "output_error": r.output_error, "grad_error": r.grad_error, "mismatch": r.mismatch, "pareto": r.pareto,
                        "failure": r.failure})
             })
@@ -491,8 +522,7 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
         std::fs::write(p, text + "\n").map_err(|e| format!("error: cannot write {}: {e}", p.display()))?;
     }
     if let Some(p) = &a.plot {
-        let points: Vec<(f64, f64, String, bool)> =
-            rows.iter().map(|r| (r.time_us(), r.error(), format!("{} {}", r.config.precision, r.config.math), r.pareto)).collect();
+        let points: Vec<(f64, f64, String, bool)> = rows.iter().map(|r| (r.time_us(), r.error(), r.config.label(), r.pareto)).collect();
         crate::plot::scatter_loglog(
             p,
             "time against error (red: Pareto-optimal)",

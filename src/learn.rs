@@ -21,7 +21,7 @@ fn read_dataset(path: &Path) -> Result<Dataset, String> {
 /// `gwml train`.
 pub fn train(a: TrainArgs) -> Result<(), String> {
     let model = Model::from_file(&a.file).map_err(render)?;
-    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
     let train = read_dataset(&a.data)?;
     let val = a.val.as_deref().map(read_dataset).transpose()?;
     let method = match a.optimizer {
@@ -128,7 +128,7 @@ fn epoch_line(r: &EpochReport, epochs: usize) -> String {
 /// `gwml predict`.
 pub fn predict(a: PredictArgs) -> Result<(), String> {
     let model = Model::from_file(&a.file).map_err(render)?;
-    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
     let ck = checkpoint::load(&a.weights).map_err(render)?;
     let mut run = scene.bind();
     let func = scene.ir();

@@ -89,7 +89,7 @@ pub enum MathArg {
 }
 
 /// Overrides of a scene's speed/accuracy knobs.
-#[derive(clap::Args, Clone, Copy)]
+#[derive(clap::Args, Clone)]
 pub struct KnobArgs {
     /// Override the scene's precision knob.
     #[arg(long, value_enum)]
@@ -97,6 +97,11 @@ pub struct KnobArgs {
     /// Override the scene's math knob.
     #[arg(long, value_enum)]
     pub math: Option<MathArg>,
+    /// Set one of the scene's `knob` declarations: NAME=VALUE, the value
+    /// written as in the scene, with its unit (`--knob df="0.25 Hz"`,
+    /// `--knob pn_order=5`). Repeatable.
+    #[arg(long = "knob", value_name = "NAME=VALUE")]
+    pub knobs: Vec<String>,
 }
 
 /// How `run` prints results.
@@ -491,6 +496,12 @@ pub struct TradeoffArgs {
     /// Math modes to sweep [default: all].
     #[arg(long, value_enum, value_delimiter = ',')]
     pub math: Vec<MathArg>,
+    /// Also sweep one of the scene's `knob` declarations over comma-separated
+    /// values, NAME=V1,V2,... (`--sweep df="0.25 Hz,0.5 Hz"`,
+    /// `--sweep pn_order=4,6`); repeatable (every combination is measured).
+    /// The reference keeps the scene's own value.
+    #[arg(long, value_name = "NAME=V1,V2,...")]
+    pub sweep: Vec<String>,
     /// Timed calls per configuration and kernel (medians are reported).
     #[arg(long, default_value_t = 200)]
     pub reps: usize,

@@ -164,7 +164,7 @@ impl Completer for ReplHelper {
             );
         }
         cands.extend(
-            ["let", "param", "grid", "input", "module", "learned", "weight", "use", "wrt", "frequencies", "times", "index"]
+            ["let", "param", "knob", "grid", "input", "module", "learned", "weight", "use", "wrt", "frequencies", "times", "index"]
                 .iter()
                 .map(|s| s.to_string()),
         );
@@ -307,14 +307,14 @@ impl Repl {
             "use" => Some(Def::Use(t.to_string())),
             // `learned` components are module-like definitions (issue 4 adds them to the language).
             "module" | "learned" => name_after(first).map(|n| Def::Module(n, t.to_string())),
-            "let" | "param" | "grid" | "input" => name_after(first).map(|n| Def::Stmt(n, t.to_string())),
+            "let" | "param" | "knob" | "grid" | "input" => name_after(first).map(|n| Def::Stmt(n, t.to_string())),
             _ => None,
         };
         if let Some(def) = def {
             let src = self.session.source(Some(&def), "");
             self.compile(&src)?;
             let shown = match &def {
-                Def::Stmt(n, _) if first == "let" || first == "param" => Some(n.clone()),
+                Def::Stmt(n, _) if ["let", "param", "knob"].contains(&first) => Some(n.clone()),
                 _ => None,
             };
             self.session.commit(def);

@@ -1,6 +1,8 @@
 //! `gwml tradeoff`: one scene compiled under every combination of the
-//! speed/accuracy knobs, each timed and compared with the f64-exact
-//! reference, so a user can pick a point on the Pareto front.
+//! speed/accuracy knobs (precision, math, and any values given for the
+//! scene's own `knob`s, such as its grid step or PN order), each timed and
+//! compared with the f64-exact reference at the scene's own knob values, so
+//! a user can pick a point on the Pareto front.
 //!
 //! Errors are measured on the same bound params and inputs:
 //! - output error: over every output, the largest `max_i |a_i − r_i| / max_i |r_i|`
@@ -10,6 +12,9 @@
 //!   `1 − Re⟨a, r⟩ / √(⟨a, a⟩⟨r, r⟩)` with `⟨a, b⟩ = Σ a_k conj(b_k) / S_k`, where
 //!   `S` is the real array output named by `--psd` (unweighted without it).
 //!   No maximisation over time or phase: a pure precision loss, not a search.
+//!
+//! An array output whose length differs from the reference's (a knob changed
+//! its grid) is not compared; scalars (a likelihood) and gradients still are.
 
 use crate::timing::median_us;
 use gwml_compiler::ir::{MathMode, Precision};
@@ -19,12 +24,33 @@ use num_complex::Complex64 as C64;
 use std::fmt::Write;
 
 /// One combination of knobs.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Config {
     /// Working precision.
     pub precision: Precision,
     /// Transcendental functions.
     pub math: MathMode,
+    /// Values of the scene's own `knob`s, as source text (`("df", "0.25 Hz")`);
+    /// the knobs not named keep the scene's values.
+    pub knobs: Vec<(String, String)>,
+}
+
+impl Config {
+    /// f64, exact math, the scene's own knob values: what every row is measured against.
+    pub fn reference() -> Config {
+        Config { precision: Precision::F64, math: MathMode::Exact, knobs: Vec::new() }
+    }
+
+    /// The scene knobs as `df=0.25 Hz pn_order=5` (empty for the scene's own).
+    pub fn knob_text(&self) -> String {
+        self.knobs.iter().map(|(n, v)| format!("{n}={v}")).collect::<Vec<_>>().join(" ")
+    }
+
+    /// `f64 exact df=0.25 Hz`: the knobs in one phrase.
+    pub fn label(&self) -> String {
+        let k = self.knob_text();
+        format!("{} {}{}{k}", self.precision, self.math, if k.is_empty() { "" } else { " " })
+    }
 }
 
 /// What the sweep measures.
@@ -95,10 +121,29 @@ pub fn all_configs() -> Vec<Config> {
     let mut v = Vec::new();
     for precision in [Precision::F64, Precision::Mixed, Precision::F32] {
         for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
-            v.push(Config { precision, math });
+            v.push(Config { precision, math, knobs: Vec::new() });
         }
     }
     v
+}
+
+/// Every configuration of `configs` combined with every combination of the
+/// scene-knob values in `sweeps` (name, values as source text).
+pub fn with_knob_sweeps(configs: Vec<Config>, sweeps: &[(String, Vec<String>)]) -> Vec<Config> {
+    let mut out = configs;
+    for (name, values) in sweeps {
+        out = out
+            .into_iter()
+            .flat_map(|c| {
+                values.iter().map(move |v| {
+                    let mut c = c.clone();
+                    c.knobs.push((name.clone(), v.clone()));
+                    c
+                })
+            })
+            .collect();
+    }
+    out
 }
 
 fn rel_max_norm(a: &[C64], r: &[C64]) -> f64 {
@@ -148,19 +193,20 @@ pub fn sweep(
     scene: Option<&str>,
     settings: &Settings,
     bind: &dyn Fn(&mut Run) -> Result<(), Error>,
-    progress: &mut dyn FnMut(usize, usize, Config),
+    progress: &mut dyn FnMut(usize, usize, &Config),
 ) -> Result<Vec<Row>, Error> {
-    let reference = Config { precision: Precision::F64, math: MathMode::Exact };
-    let mut configs = vec![reference];
-    configs.extend(settings.configs.iter().copied().filter(|c| *c != reference));
+    let reference = Config::reference();
+    let mut configs = vec![reference.clone()];
+    configs.extend(settings.configs.iter().filter(|c| **c != reference).cloned());
     let mut rows: Vec<Row> = Vec::new();
     let mut reference_out: Option<Outputs> = None;
     let count = configs.len();
     for (i, config) in configs.into_iter().enumerate() {
-        progress(i, count, config);
+        progress(i, count, &config);
         // The reference must compile and run; other settings may fail
         // (reported in their row), at compile time or when run.
-        let compiled = match model.scene_with(scene, Options { precision: Some(config.precision), math: Some(config.math) }) {
+        let options = Options { precision: Some(config.precision), math: Some(config.math), knobs: config.knobs.clone() };
+        let compiled = match model.scene_with(scene, options) {
             Ok(compiled) => compiled,
             Err(e) if i > 0 => {
                 rows.push(Row::failed(config, &e));
@@ -170,7 +216,14 @@ pub fn sweep(
         };
         let has_grads = compiled.ir().has_gradients();
         let mut run = compiled.bind();
-        bind(&mut run)?;
+        match bind(&mut run) {
+            Ok(()) => {}
+            Err(e) if i > 0 => {
+                rows.push(Row::failed(config, &e));
+                continue;
+            }
+            Err(e) => return Err(e),
+        }
         let first = if has_grads { run.value_and_grad() } else { run.forward() };
         let out = match first {
             Ok(out) => out,
@@ -213,7 +266,12 @@ fn compare(out: &Outputs, r: &Outputs, psd: Option<&str>) -> Result<(f64, Option
     let mut mismatch_max: Option<f64> = None;
     for (name, want) in &r.values {
         let got = out.value(name)?;
-        output_error = output_error.max(rel_max_norm(&as_complex(got), &as_complex(want)));
+        let (a, b) = (as_complex(got), as_complex(want));
+        if a.len() != b.len() {
+            // On another grid (a scene knob changed it): not comparable bin by bin.
+            continue;
+        }
+        output_error = output_error.max(rel_max_norm(&a, &b));
         if let (Value::ComplexArray(a), Value::ComplexArray(b)) = (got, want) {
             let m = mismatch(a, b, weight.as_deref().filter(|w| w.len() == b.len()));
             mismatch_max = Some(mismatch_max.map_or(m, |x: f64| x.max(m)));
@@ -243,25 +301,38 @@ fn opt(x: Option<f64>, f: impl Fn(f64) -> String) -> String {
 }
 
 /// The rows sorted by time as an aligned table (Markdown-compatible);
-/// `*` marks Pareto-optimal rows, `speed-up` is relative to f64-exact.
+/// `*` marks Pareto-optimal rows, `speed-up` is relative to f64-exact. A
+/// `knobs` column appears when the sweep sets scene knobs.
 pub fn table(rows: &[Row]) -> String {
-    let base = rows.iter().find(|r| r.config.precision == Precision::F64 && r.config.math == MathMode::Exact).map(Row::time_us);
+    let base = rows.iter().find(|r| r.config == Config::reference()).map(Row::time_us);
+    let with_knobs = rows.iter().any(|r| !r.config.knobs.is_empty());
     let mut sorted: Vec<&Row> = rows.iter().collect();
     sorted.sort_by(|a, b| a.failure.is_some().cmp(&b.failure.is_some()).then(a.time_us().total_cmp(&b.time_us())));
+    let knobs = |r: &Row| {
+        if with_knobs {
+            format!(" {} |", if r.config.knobs.is_empty() { "(scene)".into() } else { r.config.knob_text() })
+        } else {
+            String::new()
+        }
+    };
     let mut s = String::new();
-    let _ = writeln!(s, "| pareto | precision | math | forward µs | fwd+grad µs | speed-up | output rel. err | grad rel. err | mismatch |");
-    let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|---:|---:|");
+    let (kh, kr) = if with_knobs { (" knobs |", "---|") } else { ("", "") };
+    let _ =
+        writeln!(s, "| pareto | precision | math |{kh} forward µs | fwd+grad µs | speed-up | output rel. err | grad rel. err | mismatch |");
+    let _ = writeln!(s, "|---|---|---|{kr}---:|---:|---:|---:|---:|---:|");
     for r in sorted {
         if let Some(f) = &r.failure {
-            let _ = writeln!(s, "|  | {} | {} | failed: {} | | | | | |", r.config.precision, r.config.math, f.replace('|', "/"));
+            let _ =
+                writeln!(s, "|  | {} | {} |{} failed: {} | | | | | |", r.config.precision, r.config.math, knobs(r), f.replace('|', "/"));
             continue;
         }
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.1} | {} | {} | {:.1e} | {} | {} |",
+            "| {} | {} | {} |{} {:.1} | {} | {} | {:.1e} | {} | {} |",
             if r.pareto { "*" } else { "" },
             r.config.precision,
             r.config.math,
+            knobs(r),
             r.forward_us,
             opt(r.grad_us, |t| format!("{t:.1}")),
             opt(base, |b| format!("{:.2}×", b / r.time_us())),
@@ -275,14 +346,15 @@ pub fn table(rows: &[Row]) -> String {
 
 /// The rows as CSV with a header line.
 pub fn csv(rows: &[Row]) -> String {
-    let mut s = String::from("precision,math,forward_us,grad_us,output_error,grad_error,mismatch,pareto,failure\n");
+    let mut s = String::from("precision,math,knobs,forward_us,grad_us,output_error,grad_error,mismatch,pareto,failure\n");
     let o = |x: Option<f64>| x.map_or(String::new(), |v| format!("{v:e}"));
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{:e},{},{:e},{},{},{},\"{}\"",
+            "{},{},\"{}\",{:e},{},{:e},{},{},{},\"{}\"",
             r.config.precision,
             r.config.math,
+            r.config.knob_text(),
             r.forward_us,
             o(r.grad_us),
             r.output_error,
@@ -301,7 +373,7 @@ mod tests {
 
     fn row(t: f64, e: f64) -> Row {
         Row {
-            config: Config { precision: Precision::F64, math: MathMode::Exact },
+            config: Config::reference(),
             forward_us: t,
             grad_us: None,
             output_error: e,

@@ -108,6 +108,22 @@ fn compile_emits_every_stage_and_stats() {
     assert!(ok && out.contains("precision f32"), "{out}");
 }
 
+/// `--knob NAME=VALUE` sets a scene's `knob`: the grid step of the W1
+/// likelihood (so its arrays shrink) or the template's PN order; a knob the
+/// scene lacks is refused with its name.
+#[test]
+fn run_with_knob_overrides() {
+    let base = json(&["run", "examples/taylorf2_tradeoff.gw", "--format", "json"]);
+    let coarse = json(&["run", "examples/taylorf2_tradeoff.gw", "--format", "json", "--knob", "df=0.5 Hz"]);
+    let pn6 = json(&["run", "examples/taylorf2_tradeoff.gw", "--format", "json", "--knob", "pn_order=6"]);
+    let len = |j: &serde_json::Value| j["outputs"]["psd"]["len"].as_u64();
+    assert_eq!((len(&base), len(&coarse)), (Some(8033), Some(2009)));
+    let loss = |j: &serde_json::Value| j["outputs"]["loss"].as_f64().unwrap();
+    assert!(loss(&coarse) != loss(&base) && loss(&pn6) != loss(&base));
+    let (ok, _, err) = gwml(&["run", "examples/taylorf2_tradeoff.gw", "--knob", "grid_step=1 Hz"]);
+    assert!(!ok && err.contains("has no knob `grid_step`"), "{err}");
+}
+
 #[test]
 fn f32_run_agrees_with_f64() {
     let a = json(&["run", "examples/chirp_fit.gw", "--grad", "--format", "json"]);

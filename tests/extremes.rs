@@ -152,12 +152,12 @@ fn exp_overflow_is_an_error_and_stable_forms_stay_finite_at_1000() {
     assert_eq!((out.scalar("a").unwrap(), out.grad("a", "x").unwrap()), (0.0, 0.0));
     // softplus and sigmoid of ±1000: exact limits and gradients, in f64 and f32.
     for precision in [Precision::F64, Precision::F32, Precision::Mixed] {
-        let opts = Options { precision: Some(precision), math: None };
+        let opts = Options { precision: Some(precision), math: None, ..Default::default() };
         for (x, sp, dsp, sg) in [(1000.0, 1000.0, 1.0, 1.0), (-1000.0, 0.0, 0.0, 0.0)] {
             let src = format!(
                 "use std::nn::{{softplus, sigmoid}}\nscene s {{\n param x = {x}\n output a = softplus(x)\n output b = sigmoid(x)\n grad a wrt x\n grad b wrt x\n}}"
             );
-            let out = run_grad(&src, opts).unwrap();
+            let out = run_grad(&src, opts.clone()).unwrap();
             assert_eq!(out.scalar("a").unwrap(), sp, "softplus({x}) in {precision}");
             assert_eq!(out.grad("a", "x").unwrap(), dsp, "softplus'({x}) in {precision}");
             assert_eq!(out.scalar("b").unwrap(), sg, "sigmoid({x}) in {precision}");
@@ -182,7 +182,7 @@ fn a_reduction_of_1e7_terms_in_f32_keeps_relative_error_below_1e_6() {
     }
     let reference = sum + c;
     for precision in [Precision::F64, Precision::F32, Precision::Mixed] {
-        let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
+        let scene = model.scene_with(None, Options { precision: Some(precision), math: None, ..Default::default() }).unwrap();
         let got = scene.bind().forward().unwrap().scalar("s").unwrap();
         let rel = ((got - reference) / reference).abs();
         assert!(rel <= 1e-6, "{precision}: {got} vs {reference} (relative error {rel:e})");
@@ -200,7 +200,7 @@ fn a_reduction_of_1e7_terms_in_f32_keeps_relative_error_below_1e_6() {
 fn strains_of_1e_minus_23_in_f32_are_rescaled_and_agree_with_f64() {
     let model = Model::from_source("w.gw", SOURCE).unwrap();
     let run_in = |precision: Precision| -> gwml::Outputs {
-        let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
+        let scene = model.scene_with(None, Options { precision: Some(precision), math: None, ..Default::default() }).unwrap();
         let mut run = scene.bind();
         run.param("mc", 20.05).unwrap().param("q", 0.85).unwrap();
         run.value_and_grad().unwrap()
@@ -238,7 +238,7 @@ scene w {
 }";
     let model = Model::from_source("psi.gw", src).unwrap();
     let z_in = |precision: Precision| {
-        let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
+        let scene = model.scene_with(None, Options { precision: Some(precision), math: None, ..Default::default() }).unwrap();
         // The rule marks cis (and the phase under it) f64; f64 and f32 mark nothing.
         let wide = scene.forward_ir().wide_values();
         if precision == Precision::Mixed {
@@ -297,7 +297,7 @@ scene e {{
     ] {
         let model = Model::from_source("edge.gw", &src(psd)).unwrap();
         for precision in [Precision::F64, Precision::Mixed] {
-            let scene = model.scene_with(None, Options { precision: Some(precision), math: None }).unwrap();
+            let scene = model.scene_with(None, Options { precision: Some(precision), math: None, ..Default::default() }).unwrap();
             let out = scene.bind().value_and_grad().unwrap();
             let (s, g, rho) = (out.scalar("s").unwrap(), out.grad("s", "f0").unwrap(), out.scalar("rho").unwrap());
             let tol = if precision == Precision::F64 { 1e-12 } else { 1e-5 };

@@ -43,6 +43,16 @@ sum(f / 1 Hz)
     insta::assert_snapshot!(out);
 }
 
+/// A `knob` is a named constant a grid may use, shown like a `let`.
+#[test]
+fn knob_sets_a_grid_step() {
+    let (ok, out) = piped("knob df = 0.5 Hz\ngrid g = frequencies(from: 1 Hz, to: 3 Hz, step: df)\nsum(g / 1 Hz)\n");
+    assert!(ok, "{out}");
+    assert!(out.contains("df = 0.5"), "{out}");
+    // 1 + 1.5 + 2 + 2.5 + 3.
+    assert!(out.lines().any(|l| l.trim() == "10"), "{out}");
+}
+
 #[test]
 fn transcript_learned_component() {
     let (ok, out) = piped(

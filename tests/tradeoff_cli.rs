@@ -28,7 +28,7 @@ fn tradeoff_sweeps_math_modes_and_writes_csv_json_and_png() {
         png.to_str().unwrap(),
     ]);
     assert!(ok, "{stderr}");
-    assert!(stderr.contains("[1/3] precision f64, math exact"), "{stderr}");
+    assert!(stderr.contains("[1/3] f64 exact"), "{stderr}");
     let rows: Vec<&str> = stdout.lines().filter(|l| l.contains("| f64 |")).collect();
     assert_eq!(rows.len(), 3, "{stdout}");
     // The reference has no error and is never dominated in accuracy.
@@ -75,4 +75,64 @@ fn a_failing_setting_is_reported_in_its_row() {
     assert!(f32_row.contains("failed:") && f32_row.contains("precision: mixed"), "{f32_row}");
     assert!(stdout.lines().any(|l| l.starts_with("| * | f64 | exact |")), "{stdout}");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `--sweep` measures the scene's own knobs: the grid resolution `df` (the
+/// waveform output is then on another grid, so it has no mismatch, while the
+/// loss is compared) and the template's PN order (a different waveform).
+#[test]
+fn tradeoff_sweeps_scene_knobs() {
+    let dir = std::env::temp_dir().join(format!("gwml-tradeoff-knobs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("t.json");
+    let (ok, stdout, stderr) = gwml(&[
+        "tradeoff",
+        "examples/taylorf2_tradeoff.gw",
+        "--psd",
+        "psd",
+        "--reps",
+        "3",
+        "--precision",
+        "f64",
+        "--math",
+        "exact",
+        "--sweep",
+        "df=0.125 Hz,0.5 Hz",
+        "--sweep",
+        "pn_order=6,7",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("[2/5] f64 exact df=0.125 Hz pn_order=6"), "{stderr}");
+    assert!(stdout.contains("| knobs |") && stdout.contains("| (scene) |"), "{stdout}");
+    let items: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let items = items.as_array().unwrap();
+    assert_eq!(items.len(), 5, "the reference and 2 × 2 knob settings");
+    let row = |df: &str, pn: &str| {
+        items
+            .iter()
+            .find(|it| it["knobs"]["df"] == df && it["knobs"]["pn_order"] == pn)
+            .unwrap_or_else(|| panic!("no row df={df} pn_order={pn}"))
+    };
+    // The scene's own values, set explicitly: the reference again.
+    let same = row("0.125 Hz", "7");
+    assert_eq!((same["output_error"].as_f64(), same["grad_error"].as_f64(), same["mismatch"].as_f64()), (Some(0.0), Some(0.0), Some(0.0)));
+    // A 3PN template against 3.5PN data: another waveform.
+    assert!(row("0.125 Hz", "6")["mismatch"].as_f64().unwrap() > 1e-3);
+    // A coarser grid: four times fewer bins; the loss moves, the waveform is not compared.
+    let coarse = row("0.5 Hz", "7");
+    assert!(coarse["mismatch"].is_null(), "{coarse}");
+    assert!(coarse["output_error"].as_f64().unwrap() > 1e-6, "{coarse}");
+    assert!(coarse["grad_us"].as_f64().unwrap() < same["grad_us"].as_f64().unwrap() * 10.0);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_sweep_of_a_knob_the_scene_lacks_is_refused_with_a_suggestion() {
+    let (ok, _, stderr) = gwml(&["tradeoff", "examples/taylorf2_tradeoff.gw", "--reps", "2", "--sweep", "pn_ordr=5"]);
+    assert!(!ok);
+    assert!(stderr.contains("has no knob `pn_ordr`") && stderr.contains("did you mean `pn_order`?"), "{stderr}");
+    let (ok, _, stderr) = gwml(&["tradeoff", "examples/taylorf2_tradeoff.gw", "--reps", "2", "--sweep", "pn_order"]);
+    assert!(!ok && stderr.contains("expected NAME=VALUE"), "{stderr}");
 }

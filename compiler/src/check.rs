@@ -131,6 +131,20 @@ pub struct Checker<'a> {
     diags: Vec<Diagnostic>,
     seen: HashSet<(Span, String)>,
     call_stack: Vec<(String, Span)>,
+    /// The knobs of the scene being lowered: name → (value, unit).
+    knobs: HashMap<String, (f64, Dim)>,
+    /// Knobs whose value failed to check (already reported): uses stay silent.
+    failed_knobs: HashSet<String>,
+}
+
+/// A value given on the command line for a scene's knob (`--knob NAME=VALUE`):
+/// the expression replaces the one the scene declares.
+#[derive(Clone, Debug)]
+pub struct KnobOverride {
+    /// The knob's name.
+    pub name: String,
+    /// Its new value, parsed from its own pseudo-file (so errors point into it).
+    pub value: Expr,
 }
 
 /// Result of lowering a scene: the IR (if no error) and diagnostics.
@@ -139,7 +153,14 @@ pub type SceneResult = Result<ir::Function, Vec<Diagnostic>>;
 impl<'a> Checker<'a> {
     /// A checker that sees `modules` (user modules and imported stdlib modules).
     pub fn new(modules: HashMap<String, &'a ModuleDef>) -> Self {
-        Checker { modules, diags: Vec::new(), seen: HashSet::new(), call_stack: Vec::new() }
+        Checker {
+            modules,
+            diags: Vec::new(),
+            seen: HashSet::new(),
+            call_stack: Vec::new(),
+            knobs: HashMap::new(),
+            failed_knobs: HashSet::new(),
+        }
     }
 
     fn error(&mut self, d: Diagnostic) {
@@ -214,8 +235,9 @@ impl<'a> Checker<'a> {
         d
     }
 
-    /// Checks `scene` and lowers it to IR.
-    pub fn lower_scene(mut self, scene: &'a SceneDef) -> SceneResult {
+    /// Checks `scene` and lowers it to IR, with `overrides` replacing the
+    /// values of its knobs.
+    pub fn lower_scene(mut self, scene: &'a SceneDef, overrides: &'a [KnobOverride]) -> SceneResult {
         let mut func = ir::Function { name: scene.name.node.clone(), ..Default::default() };
         let mut scope = Scope::new(ScopeKind::Scene);
         let mut declared: HashMap<String, Span> = HashMap::new();
@@ -224,7 +246,7 @@ impl<'a> Checker<'a> {
             let name = match st {
                 SceneStmt::Grid { name, .. } | SceneStmt::Input { name, .. } => Some(name),
                 SceneStmt::Param(p) => Some(&p.name),
-                SceneStmt::Let(l) | SceneStmt::Output(l) => Some(&l.name),
+                SceneStmt::Let(l) | SceneStmt::Output(l) | SceneStmt::Knob(l) => Some(&l.name),
                 _ => None,
             };
             if let Some(n) = name {
@@ -236,7 +258,7 @@ impl<'a> Checker<'a> {
                     );
                 }
             }
-            if let SceneStmt::Knob { name, value } = st {
+            if let SceneStmt::Setting { name, value } = st {
                 if let Some(prev) = knobs.insert(name.node.clone(), name.span) {
                     self.error(
                         Diagnostic::error(name.span, format!("knob `{}` is set twice", name.node))
@@ -270,6 +292,7 @@ impl<'a> Checker<'a> {
                 }
             }
         }
+        self.scene_knobs(scene, overrides);
         let mut b = Builder::new(func, false);
         // Grids first: inputs' types name them.
         for st in &scene.stmts {
@@ -354,6 +377,66 @@ impl<'a> Checker<'a> {
             Ok(b.func)
         } else {
             Err(self.diags)
+        }
+    }
+
+    /// Evaluates the scene's `knob` declarations in source order (a knob may
+    /// use the knobs above it), each replaced by its override if one is given.
+    fn scene_knobs(&mut self, scene: &'a SceneDef, overrides: &'a [KnobOverride]) {
+        let mut declared = Vec::new();
+        for st in &scene.stmts {
+            let SceneStmt::Knob(k) = st else { continue };
+            let name = &k.name.node;
+            declared.push(name.as_str());
+            if CONSTANTS.iter().any(|c| c.name == name) {
+                self.error(
+                    Diagnostic::error(k.name.span, format!("knob `{name}` would hide the constant `{name}`"))
+                        .with_help("give the knob another name"),
+                );
+                self.failed_knobs.insert(name.clone());
+                continue;
+            }
+            if let Some(t) = &k.ty {
+                self.error(
+                    Diagnostic::error(t.span, "a knob takes its unit from its value")
+                        .with_label("no type here")
+                        .with_help(format!("write the unit on the value, e.g. `knob {name} = 0.125 Hz`")),
+                );
+            }
+            let Some((mut x, dim)) = self.const_eval(&k.value) else {
+                self.failed_knobs.insert(name.clone());
+                continue;
+            };
+            if let Some(o) = overrides.iter().find(|o| &o.name == name) {
+                match self.const_eval(&o.value) {
+                    Some((y, odim)) if odim == dim => x = y,
+                    Some((_, odim)) => {
+                        self.error(
+                            unit_mismatch(o.value.span, dim, odim, &format!("knob `{name}`"))
+                                .with_secondary(k.value.span, "the scene's value"),
+                        );
+                        self.failed_knobs.insert(name.clone());
+                        continue;
+                    }
+                    None => {
+                        self.failed_knobs.insert(name.clone());
+                        continue;
+                    }
+                }
+            }
+            self.knobs.insert(name.clone(), (x, dim));
+        }
+        for o in overrides {
+            if declared.contains(&o.name.as_str()) {
+                continue;
+            }
+            let mut d = Diagnostic::error(o.value.span, format!("scene `{}` has no knob `{}`", scene.name.node, o.name));
+            d = match did_you_mean(&o.name, declared.iter().copied()) {
+                Some(s) => d.with_help(format!("did you mean `{s}`?")),
+                None if declared.is_empty() => d.with_help("declare one in the scene, e.g. `knob pn_order = 7`"),
+                None => d.with_help(format!("its knobs are {}", declared.join(", "))),
+            };
+            self.error(d);
         }
     }
 
@@ -927,7 +1010,10 @@ impl<'a> Checker<'a> {
         if let Some(c) = CONSTANTS.iter().find(|c| c.name == n) {
             return Some(Tv { v: b.real(c.value), dim: c.dim });
         }
-        if scope.poisoned.contains(n) {
+        if let Some(&(x, dim)) = self.knobs.get(n) {
+            return Some(Tv { v: b.real(x), dim });
+        }
+        if scope.poisoned.contains(n) || self.failed_knobs.contains(n) {
             return None;
         }
         if let Some((_, usage)) = BUILTINS.iter().find(|b| b.0 == n) {

@@ -4,7 +4,7 @@
 //! prune → adjoint → simplify → specialise → rescale → (codegen, in
 //! [`crate::codegen`]).
 
-use crate::check::{collect_modules, Checker};
+use crate::check::{collect_modules, Checker, KnobOverride};
 use crate::diagnostics::{render_all, Diagnostic};
 use crate::ir::{Function, Precision};
 use crate::passes;
@@ -46,16 +46,21 @@ pub struct Program {
     pub sources: SourceMap,
     /// The user's file, parsed.
     pub ast: ast::SourceFileAst,
+    /// The imported stdlib files, parsed (their modules are in scope).
+    std_asts: Vec<ast::SourceFileAst>,
     scenes: Vec<Function>,
 }
 
 /// Per-scene compile options.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct Options {
-    /// Overrides the scene's `precision` knob.
+    /// Overrides the scene's `precision` setting.
     pub precision: Option<Precision>,
-    /// Overrides the scene's `math` knob.
+    /// Overrides the scene's `math` setting.
     pub math: Option<crate::ir::MathMode>,
+    /// Overrides of the scene's `knob` values: name and value as source text
+    /// (`("df", "0.25 Hz")`); the scene is checked and lowered again with them.
+    pub knobs: Vec<(String, String)>,
 }
 
 /// Instruction counts and times of each stage, for `gwml compile --stats`.
@@ -97,18 +102,8 @@ impl Program {
         let (ast, mut diags) = syntax::parse(text, file);
         let mut std_asts: Vec<(String, ast::SourceFileAst)> = Vec::new();
         load_imports(&ast, &mut sources, &mut std_asts, &mut diags);
-        let mut program = Program { sources, ast, scenes: Vec::new() };
-        // Modules: the user's, plus every module of every loaded stdlib file.
-        let mut all_items: Vec<&ast::Item> = Vec::new();
-        for (_, a) in &std_asts {
-            all_items.extend(a.items.iter());
-        }
-        let std_modules = collect_modules(all_items.into_iter(), &mut diags);
-        let user_modules = collect_modules(program.ast.items.iter(), &mut diags);
-        let mut modules: HashMap<String, &ast::ModuleDef> = std_modules;
-        for (k, v) in user_modules {
-            modules.insert(k, v);
-        }
+        let mut program = Program { sources, ast, std_asts: std_asts.into_iter().map(|(_, a)| a).collect(), scenes: Vec::new() };
+        let modules = program.modules(&mut diags);
         let mut scenes = Vec::new();
         {
             let mut checker = Checker::new(modules.clone());
@@ -130,7 +125,7 @@ impl Program {
                         );
                         continue;
                     }
-                    match Checker::new(modules.clone()).lower_scene(s) {
+                    match Checker::new(modules.clone()).lower_scene(s, &[]) {
                         Ok(f) => scenes.push(f),
                         Err(mut d) => diags.append(&mut d),
                     }
@@ -143,6 +138,43 @@ impl Program {
         }
         program.scenes = scenes;
         Ok(program)
+    }
+
+    /// Every module in scope: each loaded stdlib file's, then the user's
+    /// (which replace stdlib modules of the same name). Duplicates go to `diags`.
+    fn modules(&self, diags: &mut Vec<Diagnostic>) -> HashMap<String, &ast::ModuleDef> {
+        let mut modules = collect_modules(self.std_asts.iter().flat_map(|a| a.items.iter()), diags);
+        modules.extend(collect_modules(self.ast.items.iter(), diags));
+        modules
+    }
+
+    /// Checks and lowers scene `name` again with its knobs overridden by
+    /// `knobs` (name, value as source text). Errors are rendered, pointing
+    /// into the scene or into the override's text.
+    fn lower_with_knobs(&self, name: &str, knobs: &[(String, String)]) -> Result<Function, String> {
+        let scene = self
+            .ast
+            .items
+            .iter()
+            .find_map(|i| match i {
+                ast::Item::Scene(s) if s.name.node == name => Some(s),
+                _ => None,
+            })
+            .ok_or_else(|| format!("no scene `{name}`"))?;
+        let mut sources = self.sources.clone();
+        let mut diags = Vec::new();
+        let mut overrides = Vec::new();
+        for (knob, text) in knobs {
+            let file = sources.add(format!("--knob {knob}"), text.clone());
+            let (value, mut d) = syntax::parse_expr(text, file);
+            diags.append(&mut d);
+            if let Some(value) = value {
+                overrides.push(KnobOverride { name: knob.clone(), value });
+            }
+        }
+        let lowered =
+            if diags.is_empty() { Checker::new(self.modules(&mut Vec::new())).lower_scene(scene, &overrides) } else { Err(diags) };
+        lowered.map_err(|diagnostics| CompileError { diagnostics, sources }.render(false))
     }
 
     /// Names of the scenes, in source order.
@@ -175,6 +207,9 @@ impl Program {
     /// Runs scene `name` through prune, adjoint and simplify.
     pub fn pipeline(&self, name: Option<&str>, opts: Options) -> Result<ScenePipeline, String> {
         let mut checked = self.scene_ir(name)?.clone();
+        if !opts.knobs.is_empty() {
+            checked = self.lower_with_knobs(&checked.name, &opts.knobs)?;
+        }
         if let Some(m) = opts.math {
             checked.math = m;
         }

@@ -183,6 +183,7 @@ const TOKENS: &[&str] = &[
     "snr",
     "newtonian_chirp",
     "precision",
+    "knob",
     "f32",
     "f64",
     "pi",

@@ -644,7 +644,7 @@ fn f32_transcendental_loops_vectorise_through_f64_halves() {
     let close = |got: f64, want: f64| (got - want).abs() <= 1.2e-7 * want.abs().max(1e-30);
     for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
         let opts = Options { math: Some(math), ..Default::default() };
-        let trig = model.scene_with(Some("trig"), opts).unwrap();
+        let trig = model.scene_with(Some("trig"), opts.clone()).unwrap();
         assert!(vectorised(&trig.forward_kernel().clif), "{math:?}: sin/cos not vectorised through f64");
         let mut run = trig.bind();
         run.input_real("x", &x).unwrap();
@@ -667,7 +667,7 @@ fn f32_transcendental_loops_vectorise_through_f64_halves() {
         // exp is inline in f64 only in fast/fastest; in exact it stays a
         // libm call. A two-argument pow stays f32 (and keeps its loop scalar).
         let [e, p] = ["expo", "power"].map(|name| {
-            let scene = model.scene_with(Some(name), opts).unwrap();
+            let scene = model.scene_with(Some(name), opts.clone()).unwrap();
             let expect = name == "expo" && math != MathMode::Exact;
             assert_eq!(vectorised(&scene.forward_kernel().clif), expect, "{math:?}: {name}");
             let mut run = scene.bind();

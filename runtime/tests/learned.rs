@@ -249,7 +249,8 @@ fn f32_kernels_agree_with_f64_on_a_small_cnn() {
     let mut results = Vec::new();
     use gwml_compiler::ir::Precision;
     for precision in [Precision::F64, Precision::F32, Precision::Mixed] {
-        let scene = model.scene_with(None, gwml_compiler::Options { precision: Some(precision), math: None }).unwrap();
+        let scene =
+            model.scene_with(None, gwml_compiler::Options { precision: Some(precision), math: None, ..Default::default() }).unwrap();
         let mut run = scene.bind();
         run.input_real("x", &x).unwrap().input_real("label", &[0.0, 1.0, 0.0]).unwrap();
         let out = run.value_and_grad().unwrap();

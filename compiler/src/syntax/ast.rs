@@ -157,8 +157,11 @@ pub enum SceneStmt {
     Output(LetDecl),
     /// `grad loss wrt [mc, tc]`.
     Grad { output: Ident, wrt: Vec<Ident>, span: Span },
-    /// `precision: f32` and other knobs.
-    Knob { name: Ident, value: Ident },
+    /// `precision: f32` or `math: fast`: a setting of the compiler.
+    Setting { name: Ident, value: Ident },
+    /// `knob pn_order = 7`: a named compile-time constant of the scene,
+    /// which the command line may override (`--knob pn_order=5`).
+    Knob(LetDecl),
 }
 
 /// A differentiable parameter.

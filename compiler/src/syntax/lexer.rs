@@ -23,7 +23,7 @@ pub enum Token {
 }
 
 const KEYWORDS: &[&str] =
-    &["use", "module", "learned", "weight", "scene", "let", "param", "input", "output", "grad", "wrt", "grid", "in", "if", "else"];
+    &["use", "module", "learned", "weight", "scene", "let", "param", "input", "output", "knob", "grad", "wrt", "grid", "in", "if", "else"];
 
 const OPS: &[&str] =
     &["::", "..", "==", "!=", "<=", ">=", "->", "+", "-", "*", "/", "^", "<", ">", "=", ":", ",", ";", "(", ")", "[", "]", "{", "}"];

@@ -10,5 +10,5 @@ mod parser;
 mod printer;
 
 pub use lexer::{lex, Token};
-pub use parser::parse;
+pub use parser::{parse, parse_expr};
 pub use printer::print_ast;

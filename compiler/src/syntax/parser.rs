@@ -128,7 +128,7 @@ fn let_decl<'a, I: ValueInput<'a, Token = Token, Span = Span>>(keyword: &'static
         .map(|((name, ty), value)| LetDecl { name, ty, value })
 }
 
-const STMT_STARTS: &[&str] = &["grid", "input", "param", "let", "output", "grad", "use", "module", "learned", "weight", "scene"];
+const STMT_STARTS: &[&str] = &["grid", "input", "param", "let", "output", "knob", "grad", "use", "module", "learned", "weight", "scene"];
 
 /// Skips a broken statement: at least one token, then up to the next
 /// statement keyword or closing brace.
@@ -158,12 +158,21 @@ fn scene_stmt<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parse
         wrt,
         span: e.span(),
     });
-    let knob = ident().then_ignore(op(":")).then(ident()).map(|(name, value)| SceneStmt::Knob { name, value });
-    choice((grid, input, param, let_decl("let").map(SceneStmt::Let), let_decl("output").map(SceneStmt::Output), grad, knob))
-        .map(Some)
-        .then_ignore(op(";").or_not())
-        .recover_with(via_parser(skip_stmt().to(None)))
-        .labelled("scene statement")
+    let setting = ident().then_ignore(op(":")).then(ident()).map(|(name, value)| SceneStmt::Setting { name, value });
+    choice((
+        grid,
+        input,
+        param,
+        let_decl("let").map(SceneStmt::Let),
+        let_decl("output").map(SceneStmt::Output),
+        let_decl("knob").map(SceneStmt::Knob),
+        grad,
+        setting,
+    ))
+    .map(Some)
+    .then_ignore(op(";").or_not())
+    .recover_with(via_parser(skip_stmt().to(None)))
+    .labelled("scene statement")
 }
 
 fn item<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, I, Option<Item>, Err<'a>> + Clone {
@@ -230,8 +239,21 @@ pub fn parse(text: &str, file: FileId) -> (SourceFileAst, Vec<Diagnostic>) {
     (SourceFileAst { items: items.unwrap_or_default().into_iter().flatten().collect() }, diags)
 }
 
+/// Parses `text` (of file `file`) as one expression: a knob's value given
+/// on the command line. Returns it if it parsed, and every error found.
+pub fn parse_expr(text: &str, file: FileId) -> (Option<Expr>, Vec<Diagnostic>) {
+    let (tokens, mut diags) = lex(text, file);
+    let eoi = Span::new(file, text.len()..text.len());
+    let input = tokens.as_slice().map(eoi, |(t, s)| (t, s));
+    let (e, errs) = expr().then_ignore(end()).parse(input).into_output_errors();
+    for e in errs {
+        diags.push(syntax_diagnostic(&e));
+    }
+    (e, diags)
+}
+
 /// Statement keywords, which the parser lists when an expression ends early.
-const STATEMENT_WORDS: &[&str] = &["`grad`", "`grid`", "`input`", "`let`", "`output`", "`param`"];
+const STATEMENT_WORDS: &[&str] = &["`grad`", "`grid`", "`input`", "`knob`", "`let`", "`output`", "`param`"];
 
 /// Replaces the generic help of common mistakes with a specific one: an
 /// opening parenthesis never closed on its line, and an operator that

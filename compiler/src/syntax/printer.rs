@@ -68,7 +68,8 @@ pub fn print_ast(ast: &SourceFileAst) -> String {
                             let w: Vec<_> = wrt.iter().map(|w| w.node.as_str()).collect();
                             format!("grad {} wrt [{}]", output.node, w.join(", "))
                         }
-                        SceneStmt::Knob { name, value } => format!("{}: {}", name.node, value.node),
+                        SceneStmt::Setting { name, value } => format!("{}: {}", name.node, value.node),
+                        SceneStmt::Knob(l) => format!("knob {}{} = {}", l.name.node, opt_ty(&l.ty), expr(&l.value)),
                     };
                     let _ = writeln!(out, "  {line}");
                 }
