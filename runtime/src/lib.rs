@@ -211,10 +211,20 @@ impl Buffer {
             Buffer::F32(v) => v.as_mut_ptr() as *mut u8,
         }
     }
-    fn get(&self, i: usize) -> f64 {
+    /// The first `n` values times `scale`, in f64 (one pass, no per-element
+    /// dispatch: outputs are read after every call).
+    fn real(&self, n: usize, scale: f64) -> Vec<f64> {
         match self {
-            Buffer::F64(v) => v[i],
-            Buffer::F32(v) => v[i] as f64,
+            Buffer::F64(v) => v[..n].iter().map(|x| x * scale).collect(),
+            Buffer::F32(v) => v[..n].iter().map(|x| *x as f64 * scale).collect(),
+        }
+    }
+
+    /// The first `n` interleaved (re, im) pairs times `scale`, as complex numbers.
+    fn complex(&self, n: usize, scale: f64) -> Vec<C64> {
+        match self {
+            Buffer::F64(v) => v[..2 * n].chunks_exact(2).map(|c| C64::new(c[0] * scale, c[1] * scale)).collect(),
+            Buffer::F32(v) => v[..2 * n].chunks_exact(2).map(|c| C64::new(c[0] as f64 * scale, c[1] as f64 * scale)).collect(),
         }
     }
 }
@@ -447,9 +457,9 @@ impl<'s> Run<'s> {
                 let (complex, buf) = &self.scratch[k];
                 let n = layout.buffers[k].len;
                 if *complex {
-                    Value::ComplexArray((0..n).map(|i| C64::new(buf.get(2 * i), buf.get(2 * i + 1)) * scale).collect())
+                    Value::ComplexArray(buf.complex(n, scale))
                 } else {
-                    Value::RealArray((0..n).map(|i| buf.get(i) * scale).collect())
+                    Value::RealArray(buf.real(n, scale))
                 }
             };
             values.push((o.name.clone(), v));
@@ -468,7 +478,7 @@ impl<'s> Run<'s> {
             let Some(v) = g.value else { continue };
             let scale = func.inputs[g.input].scale;
             let data = match buffer {
-                Some(k) => (0..layout.buffers[*k].len).map(|i| self.scratch[*k].1.get(i) * scale).collect(),
+                Some(k) => self.scratch[*k].1.real(layout.buffers[*k].len, scale),
                 None => match read_scalar(v) {
                     Value::Real(x) => vec![x * scale],
                     _ => continue,
