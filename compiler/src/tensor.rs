@@ -329,15 +329,39 @@ fn pool_argmax<T: Float>(p: Pool, x: &[T], mut f: impl FnMut(usize, usize)) {
         for o in 0..u(p.len_out) {
             let start = ch * u(p.len_in) + o * u(p.stride);
             let window = &x[start..start + u(p.window)];
-            let (mut best, mut top) = (0, window[0]);
-            for (w, v) in window.iter().enumerate().skip(1) {
-                if *v > top || top.is_nan() {
-                    (best, top) = (w, *v);
-                }
-            }
-            f(start + best, ch * u(p.len_out) + o);
+            f(start + window_argmax(window), ch * u(p.len_out) + o);
         }
     }
+}
+
+/// The position of the first largest number in `window` (NaN never wins
+/// against a number; with no number above -inf, [`window_argmax_slow`]
+/// decides). The fast loop is a strict `>` from -inf, which compiles to
+/// conditional moves: it picks the first of tied maxima and never a NaN.
+fn window_argmax<T: Float>(window: &[T]) -> usize {
+    let (mut best, mut top) = (usize::MAX, T::neg_infinity());
+    for (w, &v) in window.iter().enumerate() {
+        let take = v > top;
+        best = if take { w } else { best };
+        top = if take { v } else { top };
+    }
+    if best == usize::MAX {
+        window_argmax_slow(window)
+    } else {
+        best
+    }
+}
+
+/// [`window_argmax`] for windows of NaN and -inf only: the first -inf if
+/// there is one, else the last NaN.
+fn window_argmax_slow<T: Float>(window: &[T]) -> usize {
+    let (mut best, mut top) = (0, window[0]);
+    for (w, v) in window.iter().enumerate().skip(1) {
+        if *v > top || top.is_nan() {
+            (best, top) = (w, *v);
+        }
+    }
+    best
 }
 
 macro_rules! entry_point {
@@ -490,6 +514,20 @@ mod tests {
         assert_eq!(run(TensorOp::PoolPick(p), &x, &x), vec![-1.0, 5.0, 4.0]);
         let positions = run(TensorOp::PoolScatter(p), &x, &[1.0, 2.0, 3.0]);
         assert_eq!(positions, vec![0.0, 1.0, 0.0, 0.0, 0.0, 2.0, 3.0, 0.0, 0.0]);
+    }
+
+    /// The fast argmax agrees with the plain first-largest-number scan on
+    /// windows of numbers, NaN and ±inf in every arrangement of 4.
+    #[test]
+    fn window_argmax_matches_the_plain_scan() {
+        let values = [f64::NAN, f64::NEG_INFINITY, -1.0, 0.0, 2.0, f64::INFINITY];
+        let n = values.len();
+        for code in 0..n.pow(4) {
+            let w: Vec<f64> = (0..4).map(|i| values[code / n.pow(i) % n]).collect();
+            assert_eq!(window_argmax(&w), window_argmax_slow(&w), "{w:?}");
+        }
+        assert_eq!(window_argmax(&[f64::NAN, f64::NAN, f64::NAN]), 2, "NaNs only: the last");
+        assert_eq!(window_argmax(&[f64::NAN, f64::NEG_INFINITY, f64::NEG_INFINITY]), 1, "the first -inf");
     }
 
     #[test]
