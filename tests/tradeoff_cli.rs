@@ -6,27 +6,20 @@ mod cli;
 
 use cli::gwml;
 
+/// `gwml tradeoff` on the W1 likelihood in f64 with 3 timed calls, plus `extra`.
+fn w1_tradeoff(extra: &[&str]) -> (bool, String, String) {
+    let mut args = vec!["tradeoff", "examples/taylorf2_tradeoff.gw", "--psd", "psd", "--reps", "3", "--precision", "f64"];
+    args.extend_from_slice(extra);
+    gwml(&args)
+}
+
 #[test]
 fn tradeoff_sweeps_math_modes_and_writes_csv_json_and_png() {
     let dir = std::env::temp_dir().join(format!("gwml-tradeoff-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (csv, json, png) = (dir.join("t.csv"), dir.join("t.json"), dir.join("t.png"));
-    let (ok, stdout, stderr) = gwml(&[
-        "tradeoff",
-        "examples/taylorf2_tradeoff.gw",
-        "--psd",
-        "psd",
-        "--reps",
-        "3",
-        "--precision",
-        "f64",
-        "--csv",
-        csv.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-        "--plot",
-        png.to_str().unwrap(),
-    ]);
+    let (ok, stdout, stderr) =
+        w1_tradeoff(&["--csv", csv.to_str().unwrap(), "--json", json.to_str().unwrap(), "--plot", png.to_str().unwrap()]);
     assert!(ok, "{stderr}");
     assert!(stderr.contains("[1/3] f64 exact"), "{stderr}");
     let rows: Vec<&str> = stdout.lines().filter(|l| l.contains("| f64 |")).collect();
@@ -85,24 +78,8 @@ fn tradeoff_sweeps_scene_knobs() {
     let dir = std::env::temp_dir().join(format!("gwml-tradeoff-knobs-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let json = dir.join("t.json");
-    let (ok, stdout, stderr) = gwml(&[
-        "tradeoff",
-        "examples/taylorf2_tradeoff.gw",
-        "--psd",
-        "psd",
-        "--reps",
-        "3",
-        "--precision",
-        "f64",
-        "--math",
-        "exact",
-        "--sweep",
-        "df=0.125 Hz,0.5 Hz",
-        "--sweep",
-        "pn_order=6,7",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let (ok, stdout, stderr) =
+        w1_tradeoff(&["--math", "exact", "--sweep", "df=0.125 Hz,0.5 Hz", "--sweep", "pn_order=6,7", "--json", json.to_str().unwrap()]);
     assert!(ok, "{stderr}");
     assert!(stderr.contains("[2/5] f64 exact df=0.125 Hz pn_order=6"), "{stderr}");
     assert!(stdout.contains("| knobs |") && stdout.contains("| (scene) |"), "{stdout}");
