@@ -163,6 +163,16 @@ pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
         // The convolutions as matrix products with the unfolded input
         // `col` (`c_in · kernel` rows of `len_out`, see `unfold`): y = W col,
         // dW = dy colᵀ, and dx = fold(Wᵀ dy).
+        // One input channel at stride 1: the unfolded input is a sliding
+        // view of the zero-padded input (`padded_view`), read in place.
+        TensorOp::Conv(c) if c.c_in == 1 && c.stride == 1 => {
+            let (k, n, dil) = (u(c.kernel), u(c.len_out), u(c.dilation));
+            padded_view(c, a, |xp| T::gemm([u(c.c_out), k, n], b, [k, 1], xp, [dil, 1], T::zero(), out, n));
+        }
+        TensorOp::ConvBackWeight(c) if c.c_in == 1 && c.stride == 1 => {
+            let (k, n, dil) = (u(c.kernel), u(c.len_out), u(c.dilation));
+            padded_view(c, b, |xp| T::gemm([u(c.c_out), n, k], a, [n, 1], xp, [1, dil], T::zero(), out, k));
+        }
         TensorOp::Conv(c) => {
             let (rows, n) = (u(c.c_in * c.kernel), u(c.len_out));
             T::with_scratch(rows * n, |col| {
@@ -294,6 +304,24 @@ fn unfold<T: Float>(c: Conv, x: &[T], col: &mut [T]) {
             }
         }
     }
+}
+
+/// Calls `f` with the one-channel input `x` zero-padded by `c.padding` on
+/// the left and cut or padded on the right to the `len_out + (kernel − 1) ·
+/// dilation` samples a stride-1 convolution reads: as a `kernel × len_out`
+/// matrix with strides `[dilation, 1]` it is [`unfold`]'s `col` (row `j`,
+/// column `t` holds `x[t + j · dilation − padding]`), without writing it out.
+fn padded_view<T: Scalar, R>(c: Conv, x: &[T], f: impl FnOnce(&[T]) -> R) -> R {
+    let (pad, len_in) = (c.padding as usize, c.len_in as usize);
+    let len = c.len_out as usize + (c.kernel as usize - 1) * c.dilation as usize;
+    T::with_scratch(len, |xp| {
+        xp.fill(T::zero());
+        let copied = len_in.min(len.saturating_sub(pad));
+        if copied > 0 {
+            xp[pad..pad + copied].copy_from_slice(&x[..copied]);
+        }
+        f(xp)
+    })
 }
 
 /// The transpose of [`unfold`]: adds every element of `col` to the input
@@ -533,9 +561,18 @@ mod tests {
 
     fn convs() -> Vec<Conv> {
         let mut out = Vec::new();
-        for (c_in, c_out, len_in, kernel, stride, padding, dilation) in
-            [(1, 1, 5, 1, 1, 0, 1), (2, 3, 11, 3, 1, 1, 1), (3, 2, 17, 4, 2, 3, 2), (1, 4, 9, 9, 3, 4, 1), (2, 2, 8, 3, 4, 0, 3)]
-        {
+        for (c_in, c_out, len_in, kernel, stride, padding, dilation) in [
+            (1, 1, 5, 1, 1, 0, 1),
+            (2, 3, 11, 3, 1, 1, 1),
+            (3, 2, 17, 4, 2, 3, 2),
+            (1, 4, 9, 9, 3, 4, 1),
+            (2, 2, 8, 3, 4, 0, 3),
+            // One channel at stride 1 (read through `padded_view`): padding
+            // and dilation, padding wider than the input, no padding.
+            (1, 3, 12, 4, 1, 2, 2),
+            (1, 2, 3, 5, 1, 4, 1),
+            (1, 2, 10, 3, 1, 0, 1),
+        ] {
             let span = dilation * (kernel - 1) + 1;
             let len_out = (len_in + 2 * padding - span) / stride + 1;
             out.push(Conv { c_in, c_out, len_in, len_out, kernel, stride, padding, dilation });
