@@ -293,6 +293,18 @@ impl<'a> Checker<'a> {
             }
         }
         self.scene_knobs(scene, overrides);
+        func.knobs = scene
+            .stmts
+            .iter()
+            .filter_map(|st| match st {
+                SceneStmt::Knob(k) => self.knobs.get(&k.name.node).map(|&(value, dim)| ir::KnobValue {
+                    name: k.name.node.clone(),
+                    value,
+                    unit: dim.to_string(),
+                }),
+                _ => None,
+            })
+            .collect();
         let mut b = Builder::new(func, false);
         // Grids first: inputs' types name them.
         for st in &scene.stmts {

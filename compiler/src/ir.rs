@@ -596,11 +596,25 @@ pub struct InputGrad {
     pub value: Option<Value>,
 }
 
+/// The value a scene `knob` was compiled with (its own or a `--knob`
+/// override), in base units; printed by `--emit ir`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KnobValue {
+    /// The knob's name.
+    pub name: String,
+    /// Its value in base units.
+    pub value: f64,
+    /// The unit of the value (`1` when dimensionless).
+    pub unit: String,
+}
+
 /// A scene lowered to IR: everything one compiled kernel computes.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Function {
     /// Scene name.
     pub name: String,
+    /// The scene's knobs, in declaration order, with the values compiled in.
+    pub knobs: Vec<KnobValue>,
     /// Grids.
     pub grids: Vec<Grid>,
     /// Parameters.
@@ -885,6 +899,9 @@ impl fmt::Display for Function {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let mut s = String::new();
         let _ = writeln!(s, "scene {} (precision {}, math {})", self.name, self.precision, self.math);
+        for k in &self.knobs {
+            let _ = writeln!(s, "  knob {} = {:?} [{}]", k.name, k.value, k.unit);
+        }
         for g in &self.grids {
             let _ = writeln!(s, "  grid {}: {} points, {:?} + i*{:?} [{}]", g.name, g.len, g.start, g.step, g.unit);
         }

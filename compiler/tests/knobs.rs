@@ -50,6 +50,14 @@ fn overrides_relower_the_scene() {
     let program = Program::parse("knobs.gw", SCENE).unwrap();
     let p = program.pipeline(Some("s"), with_knobs(&[("df", "0.5 Hz")])).unwrap();
     assert_eq!(p.checked.grids[0].len, 21, "the grid follows the knob");
+    // `--emit ir` shows the values compiled in, through every stage.
+    for stage in [&p.checked, &p.optimized] {
+        let text = stage.to_string();
+        assert!(
+            text.contains("knob df = 0.5 [Hz]") && text.contains("knob width = 2.0 [Hz]") && text.contains("knob order = 1.0 [1]"),
+            "{text}"
+        );
+    }
     assert_eq!(output(&[("df", "0.5 Hz")], "total"), 1.5 * 21.0 * 0.5);
     // A later knob computed from an overridden one sees the new value.
     assert_eq!(output(&[("df", "0.5 Hz")], "w"), 2.0);
