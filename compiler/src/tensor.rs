@@ -111,14 +111,18 @@ macro_rules! scalar {
     };
 }
 
-/// No vector max pooling (f64, or targets without SSE).
+/// No vector max pooling (targets without SSE).
+#[cfg(not(target_arch = "x86_64"))]
 fn no_vector_pool<T>(_: bool, _: Pool, _: &[T], _: &[T], _: &mut [T]) -> bool {
     false
 }
 
-scalar!(f64, dgemm, SCRATCH_F64, no_vector_pool);
+#[cfg(target_arch = "x86_64")]
+scalar!(f64, dgemm, SCRATCH_F64, pool4::f64_windows_of_4);
 #[cfg(target_arch = "x86_64")]
 scalar!(f32, sgemm, SCRATCH_F32, pool4::f32_windows_of_4);
+#[cfg(not(target_arch = "x86_64"))]
+scalar!(f64, dgemm, SCRATCH_F64, no_vector_pool);
 #[cfg(not(target_arch = "x86_64"))]
 scalar!(f32, sgemm, SCRATCH_F32, no_vector_pool);
 
@@ -412,20 +416,78 @@ fn window_argmax_slow<T: Float>(window: &[T]) -> usize {
     best
 }
 
-/// f32 max pooling over non-overlapping windows of 4 in SSE (x86-64's
-/// baseline): four windows per step, transposed so that each register holds
-/// one position of four windows, then the scan of [`window_argmax_slow`]
-/// (`v > top || top is NaN`) as lane masks, so no branch depends on the
-/// data. A profile of the glitch CNN put its pooling at a quarter of f32
-/// inference with the scalar scan.
+/// Max pooling over non-overlapping windows of 4 in SSE (x86-64's
+/// baseline), f32 and f64: a block of windows is loaded and transposed, so
+/// each register holds one position of several windows, then the scan of
+/// [`window_argmax_slow`] (`v > top || top is NaN`) runs as lane masks, so
+/// no branch depends on the data. A profile of the glitch CNN put its
+/// pooling at a quarter of f32 inference with the scalar scan.
 #[cfg(target_arch = "x86_64")]
 mod pool4 {
     use super::{window_argmax_slow, Pool};
+    use num_traits::Float;
     use std::arch::x86_64::*;
 
-    /// Four rows (windows) to four columns (positions), and back.
-    #[inline(always)]
-    fn transpose([r0, r1, r2, r3]: [__m128; 4]) -> [__m128; 4] {
+    /// An SSE register of `LANES` values of `T` and the operations the
+    /// blocked scan needs. A block is `LANES` windows of 4: four registers.
+    trait Lanes: Copy {
+        type T: Float;
+        const LANES: usize;
+        /// The first `LANES` values of `x`.
+        fn load(x: &[Self::T]) -> Self;
+        /// Into the first `LANES` values of `x`.
+        fn store(self, x: &mut [Self::T]);
+        fn splat(v: f64) -> Self;
+        fn and(self, o: Self) -> Self;
+        fn or(self, o: Self) -> Self;
+        /// `!self & o`.
+        fn and_not(self, o: Self) -> Self;
+        fn add(self, o: Self) -> Self;
+        fn gt(self, o: Self) -> Self;
+        fn unordered(self, o: Self) -> Self;
+        fn eq(self, o: Self) -> Self;
+        /// A block's four registers in memory order to the four positions
+        /// (register `w` holds position `w` of every window in the block).
+        fn to_columns(rows: [Self; 4]) -> [Self; 4];
+        /// The inverse of [`Lanes::to_columns`].
+        fn to_rows(columns: [Self; 4]) -> [Self; 4];
+    }
+
+    /// Implements [`Lanes`] for register type `$v` of `$n` values of `$t`
+    /// with the named SSE/SSE2 intrinsics and transposes.
+    macro_rules! lanes {
+        ($v:ty, $t:ty, $n:expr, $load:ident, $store:ident, $set1:ident, $columns:ident, $rows:ident,
+         $($op:ident: $intrinsic:ident),*) => {
+            // SAFETY (every method): SSE and SSE2 are part of x86-64's
+            // baseline, and `load`/`store` touch the first `$n` elements of
+            // a slice checked to hold them.
+            impl Lanes for $v {
+                type T = $t;
+                const LANES: usize = $n;
+                fn load(x: &[$t]) -> Self {
+                    unsafe { $load(x[..$n].as_ptr()) }
+                }
+                fn store(self, x: &mut [$t]) {
+                    unsafe { $store(x[..$n].as_mut_ptr(), self) }
+                }
+                fn splat(v: f64) -> Self {
+                    unsafe { $set1(v as $t) }
+                }
+                $(fn $op(self, o: Self) -> Self {
+                    unsafe { $intrinsic(self, o) }
+                })*
+                fn to_columns(rows: [Self; 4]) -> [Self; 4] {
+                    $columns(rows)
+                }
+                fn to_rows(columns: [Self; 4]) -> [Self; 4] {
+                    $rows(columns)
+                }
+            }
+        };
+    }
+
+    /// f32: four windows, one per register; a 4 × 4 transpose, its own inverse.
+    fn transpose_ps([r0, r1, r2, r3]: [__m128; 4]) -> [__m128; 4] {
         // SAFETY: SSE is part of x86-64's baseline.
         unsafe {
             let (lo01, lo23) = (_mm_unpacklo_ps(r0, r1), _mm_unpacklo_ps(r2, r3));
@@ -434,78 +496,100 @@ mod pool4 {
         }
     }
 
+    /// f64: two windows a, b in memory order [a0 a1], [a2 a3], [b0 b1],
+    /// [b2 b3] to [a0 b0], [a1 b1], [a2 b2], [a3 b3].
+    fn columns_pd([a01, a23, b01, b23]: [__m128d; 4]) -> [__m128d; 4] {
+        // SAFETY: SSE2 is part of x86-64's baseline.
+        unsafe { [_mm_unpacklo_pd(a01, b01), _mm_unpackhi_pd(a01, b01), _mm_unpacklo_pd(a23, b23), _mm_unpackhi_pd(a23, b23)] }
+    }
+
+    /// The inverse of [`columns_pd`].
+    fn rows_pd([c0, c1, c2, c3]: [__m128d; 4]) -> [__m128d; 4] {
+        // SAFETY: SSE2 is part of x86-64's baseline.
+        unsafe { [_mm_unpacklo_pd(c0, c1), _mm_unpacklo_pd(c2, c3), _mm_unpackhi_pd(c0, c1), _mm_unpackhi_pd(c2, c3)] }
+    }
+
+    #[rustfmt::skip]
+    lanes!(__m128, f32, 4, _mm_loadu_ps, _mm_storeu_ps, _mm_set1_ps, transpose_ps, transpose_ps,
+           and: _mm_and_ps, or: _mm_or_ps, and_not: _mm_andnot_ps, add: _mm_add_ps,
+           gt: _mm_cmpgt_ps, unordered: _mm_cmpunord_ps, eq: _mm_cmpeq_ps);
+    #[rustfmt::skip]
+    lanes!(__m128d, f64, 2, _mm_loadu_pd, _mm_storeu_pd, _mm_set1_pd, columns_pd, rows_pd,
+           and: _mm_and_pd, or: _mm_or_pd, and_not: _mm_andnot_pd, add: _mm_add_pd,
+           gt: _mm_cmpgt_pd, unordered: _mm_cmpunord_pd, eq: _mm_cmpeq_pd);
+
+    /// The block of `4 · LANES` values at the start of `x`, as columns.
+    #[inline(always)]
+    fn block<V: Lanes>(x: &[V::T]) -> [V; 4] {
+        V::to_columns([0, 1, 2, 3].map(|i| V::load(&x[i * V::LANES..])))
+    }
+
     /// Per lane (window), the mask of the position its scan ends on.
     #[inline(always)]
-    fn winners(c: [__m128; 4]) -> [__m128; 4] {
-        // SAFETY: SSE is part of x86-64's baseline.
-        unsafe {
-            let select = |m, x, y| _mm_or_ps(_mm_and_ps(m, x), _mm_andnot_ps(m, y));
-            let (mut top, mut best) = (c[0], _mm_setzero_ps());
-            for (w, &v) in c.iter().enumerate().skip(1) {
-                let take = _mm_or_ps(_mm_cmpgt_ps(v, top), _mm_cmpunord_ps(top, top));
-                top = select(take, v, top);
-                best = select(take, _mm_set1_ps(w as f32), best);
-            }
-            [0, 1, 2, 3].map(|w| _mm_cmpeq_ps(best, _mm_set1_ps(w as f32)))
+    fn winners<V: Lanes>(c: [V; 4]) -> [V; 4] {
+        let select = |m: V, x: V, y: V| m.and(x).or(m.and_not(y));
+        let (mut top, mut best) = (c[0], V::splat(0.0));
+        for (w, &v) in c.iter().enumerate().skip(1) {
+            let take = v.gt(top).or(top.unordered(top));
+            top = select(take, v, top);
+            best = select(take, V::splat(w as f64), best);
         }
+        [0, 1, 2, 3].map(|w| best.eq(V::splat(w as f64)))
     }
 
-    /// Four windows (16 values) of `x` from `at`, as columns.
+    /// [`super::Scalar::max_pool_vector`] for windows of 4 at stride 4.
     #[inline(always)]
-    fn load(x: &[f32], at: usize) -> [__m128; 4] {
-        let x = &x[at..at + 16];
-        // SAFETY: `x` holds the 16 values read.
-        transpose([0, 4, 8, 12].map(|i| unsafe { _mm_loadu_ps(x[i..].as_ptr()) }))
-    }
-
-    /// [`super::Scalar::max_pool_vector`] for f32: windows of 4, stride 4.
-    pub fn f32_windows_of_4(pick: bool, p: Pool, a: &[f32], b: &[f32], out: &mut [f32]) -> bool {
+    fn windows_of_4<V: Lanes>(pick: bool, p: Pool, a: &[V::T], b: &[V::T], out: &mut [V::T]) -> bool {
         if p.window != 4 || p.stride != 4 {
             return false;
         }
         let (len_in, len_out) = (p.len_in as usize, p.len_out as usize);
-        let blocks = len_out / 4;
+        let (n, span) = (V::LANES, 4 * V::LANES);
+        let blocks = len_out / n;
         for ch in 0..p.channels as usize {
             let xa = &a[ch * len_in..][..len_out * 4];
             if pick {
                 let xb = &b[ch * len_in..][..len_out * 4];
                 let o = &mut out[ch * len_out..][..len_out];
                 for k in 0..blocks {
-                    let (m, vb) = (winners(load(xa, 16 * k)), load(xb, 16 * k));
-                    // SAFETY: SSE is baseline; `o[4k..4k + 4]` is inside `o` (k < len_out / 4).
-                    unsafe {
-                        let mut v = _mm_and_ps(m[0], vb[0]);
-                        for w in 1..4 {
-                            v = _mm_or_ps(v, _mm_and_ps(m[w], vb[w]));
-                        }
-                        _mm_storeu_ps(o[4 * k..4 * k + 4].as_mut_ptr(), v);
+                    let (m, vb) = (winners(block::<V>(&xa[span * k..])), block::<V>(&xb[span * k..]));
+                    let mut v = m[0].and(vb[0]);
+                    for w in 1..4 {
+                        v = v.or(m[w].and(vb[w]));
                     }
+                    v.store(&mut o[n * k..]);
                 }
-                for i in blocks * 4..len_out {
+                for i in blocks * n..len_out {
                     o[i] = xb[4 * i + window_argmax_slow(&xa[4 * i..4 * i + 4])];
                 }
             } else {
                 let g = &b[ch * len_out..][..len_out];
                 let xo = &mut out[ch * len_in..][..len_out * 4];
                 for k in 0..blocks {
-                    let m = winners(load(xa, 16 * k));
-                    // SAFETY: SSE is baseline; `g[4k..4k + 4]` and `xo[16k..16k + 16]` are inside their slices.
-                    unsafe {
-                        let gv = _mm_loadu_ps(g[4 * k..4 * k + 4].as_ptr());
-                        let rows = transpose(m.map(|mw| _mm_and_ps(mw, gv)));
-                        for (i, r) in rows.into_iter().enumerate() {
-                            let dst = xo[16 * k + 4 * i..16 * k + 4 * i + 4].as_mut_ptr();
-                            _mm_storeu_ps(dst, _mm_add_ps(_mm_loadu_ps(dst), r));
-                        }
+                    let gv = V::load(&g[n * k..]);
+                    let rows = V::to_rows(winners(block::<V>(&xa[span * k..])).map(|mw| mw.and(gv)));
+                    for (i, r) in rows.into_iter().enumerate() {
+                        let dst = &mut xo[span * k + n * i..];
+                        V::load(dst).add(r).store(dst);
                     }
                 }
-                for i in blocks * 4..len_out {
+                for i in blocks * n..len_out {
                     let src = 4 * i + window_argmax_slow(&xa[4 * i..4 * i + 4]);
-                    xo[src] += g[i];
+                    xo[src] = xo[src] + g[i];
                 }
             }
         }
         true
+    }
+
+    /// f32 windows of 4: four windows a step.
+    pub fn f32_windows_of_4(pick: bool, p: Pool, a: &[f32], b: &[f32], out: &mut [f32]) -> bool {
+        windows_of_4::<__m128>(pick, p, a, b, out)
+    }
+
+    /// f64 windows of 4: two windows a step.
+    pub fn f64_windows_of_4(pick: bool, p: Pool, a: &[f64], b: &[f64], out: &mut [f64]) -> bool {
+        windows_of_4::<__m128d>(pick, p, a, b, out)
     }
 }
 
@@ -684,34 +768,49 @@ mod tests {
         assert_eq!(window_argmax(&[f64::NAN, f64::NEG_INFINITY, f64::NEG_INFINITY]), 1, "the first -inf");
     }
 
-    /// f32 max pooling over windows of 4 (vector code on x86-64) picks and
-    /// scatters exactly as the window-by-window scan, with NaN, ±inf and
-    /// ties, in full blocks of four windows, in the tail and with input
-    /// left over after the last window.
-    #[test]
-    fn f32_windows_of_4_match_the_scan() {
-        let special = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.5, 0.5, -0.0, 0.0];
-        for (channels, len_in) in [(3u32, 4 * 4 * 9 + 3), (2, 4 * 13), (1, 7), (2, 16)] {
+    /// Max pooling over windows of 4 in `T` (vector code on x86-64) picks
+    /// and scatters exactly as the window-by-window scan, with NaN, ±inf,
+    /// ±0 and ties, in full blocks, in the tail and with input left over
+    /// after the last window.
+    fn windows_of_4_match_the_scan<T: Scalar>() {
+        let special = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.5, 0.5, -0.0, 0.0];
+        let t = |v: f64| T::from(v).unwrap_or_else(T::nan);
+        for (channels, len_in) in [(3u32, 4 * 4 * 9 + 3), (2, 4 * 13), (1, 7), (2, 16), (2, 4 * 3 + 1)] {
             let len_out = len_in / 4;
             let p = Pool { channels, len_in, len_out, window: 4, stride: 4 };
-            let mut x: Vec<f32> = pseudo_random((channels * len_in) as usize, 21).iter().map(|v| *v as f32).collect();
+            let mut x: Vec<T> = pseudo_random((channels * len_in) as usize, 21).into_iter().map(t).collect();
             for (i, v) in x.iter_mut().enumerate() {
                 if i % 5 == 3 || i % 7 == 0 {
-                    *v = special[i % special.len()];
+                    *v = t(special[i % special.len()]);
                 }
             }
-            let g: Vec<f32> = pseudo_random((channels * len_out) as usize, 22).iter().map(|v| *v as f32).collect();
-            let y: Vec<f32> = x.iter().enumerate().map(|(i, v)| g[i % g.len()] + v).collect();
-            let (mut pick, mut scatter) = (vec![0.0f32; (channels * len_out) as usize], vec![0.0f32; (channels * len_in) as usize]);
+            let g: Vec<T> = pseudo_random((channels * len_out) as usize, 22).into_iter().map(t).collect();
+            let y: Vec<T> = x.iter().enumerate().map(|(i, v)| g[i % g.len()] + *v).collect();
+            let (mut pick, mut scatter) = (vec![T::zero(); (channels * len_out) as usize], vec![T::zero(); (channels * len_in) as usize]);
             pool_argmax(p, &x, |src, dst| pick[dst] = y[src]);
-            pool_argmax(p, &x, |src, dst| scatter[src] += g[dst]);
-            let (mut got_pick, mut got_scatter) = (vec![1.0f32; pick.len()], vec![1.0f32; scatter.len()]);
+            pool_argmax(p, &x, |src, dst| scatter[src] = scatter[src] + g[dst]);
+            let (mut got_pick, mut got_scatter) = (vec![T::one(); pick.len()], vec![T::one(); scatter.len()]);
             apply(TensorOp::PoolPick(p), &x, &y, &mut got_pick);
             apply(TensorOp::PoolScatter(p), &x, &g, &mut got_scatter);
-            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&got_pick), bits(&pick), "pick, {channels} × {len_in}");
-            assert_eq!(bits(&got_scatter), bits(&scatter), "scatter, {channels} × {len_in}");
+            let same = |a: &[T], b: &[T]| {
+                a.len() == b.len()
+                    && a.iter()
+                        .zip(b)
+                        .all(|(p, q)| p.is_nan() && q.is_nan() || p.to_f64().map(f64::to_bits) == q.to_f64().map(f64::to_bits))
+            };
+            assert!(same(&got_pick, &pick), "pick, {channels} × {len_in}");
+            assert!(same(&got_scatter, &scatter), "scatter, {channels} × {len_in}");
         }
+    }
+
+    #[test]
+    fn f32_windows_of_4_match_the_scan() {
+        windows_of_4_match_the_scan::<f32>();
+    }
+
+    #[test]
+    fn f64_windows_of_4_match_the_scan() {
+        windows_of_4_match_the_scan::<f64>();
     }
 
     #[test]
