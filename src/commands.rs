@@ -25,21 +25,25 @@ pub(crate) fn knob_assignment(s: &str, flag: &str) -> Result<(String, String), S
     }
 }
 
+fn precision(p: PrecisionArg) -> Precision {
+    match p {
+        PrecisionArg::F64 => Precision::F64,
+        PrecisionArg::F32 => Precision::F32,
+        PrecisionArg::Mixed => Precision::Mixed,
+    }
+}
+
+fn math(m: MathArg) -> MathMode {
+    match m {
+        MathArg::Exact => MathMode::Exact,
+        MathArg::Fast => MathMode::Fast,
+        MathArg::Fastest => MathMode::Fastest,
+    }
+}
+
 pub(crate) fn options(k: KnobArgs) -> Result<Options, String> {
     let knobs = k.knobs.iter().map(|s| knob_assignment(s, "--knob")).collect::<Result<Vec<_>, _>>()?;
-    Ok(Options {
-        knobs,
-        precision: k.precision.map(|p| match p {
-            PrecisionArg::F64 => Precision::F64,
-            PrecisionArg::F32 => Precision::F32,
-            PrecisionArg::Mixed => Precision::Mixed,
-        }),
-        math: k.math.map(|m| match m {
-            MathArg::Exact => MathMode::Exact,
-            MathArg::Fast => MathMode::Fast,
-            MathArg::Fastest => MathMode::Fastest,
-        }),
-    })
+    Ok(Options { knobs, precision: k.precision.map(precision), math: k.math.map(math) })
 }
 
 /// `gwml compile`.
@@ -470,13 +474,10 @@ fn num(x: f64) -> String {
 pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
     use gwml::tradeoff::{all_configs, csv, sweep, table, with_knob_sweeps, Config, Settings};
     let model = Model::from_file(&a.file).map_err(render)?;
-    let knobs = |p: Option<PrecisionArg>, m: Option<MathArg>| options(KnobArgs { precision: p, math: m, knobs: Vec::new() });
     let configs: Vec<Config> = all_configs()
         .into_iter()
-        .filter(|c| {
-            a.precision.is_empty() || a.precision.iter().any(|p| knobs(Some(*p), None).is_ok_and(|o| o.precision == Some(c.precision)))
-        })
-        .filter(|c| a.math.is_empty() || a.math.iter().any(|m| knobs(None, Some(*m)).is_ok_and(|o| o.math == Some(c.math))))
+        .filter(|c| a.precision.is_empty() || a.precision.iter().any(|p| precision(*p) == c.precision))
+        .filter(|c| a.math.is_empty() || a.math.iter().any(|m| math(*m) == c.math))
         .collect();
     let mut sweeps = Vec::new();
     for s in &a.sweep {

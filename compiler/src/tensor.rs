@@ -424,7 +424,7 @@ fn window_argmax_slow<T: Float>(window: &[T]) -> usize {
 /// pooling at a quarter of f32 inference with the scalar scan.
 #[cfg(target_arch = "x86_64")]
 mod pool4 {
-    use super::{window_argmax_slow, Pool};
+    use super::{window_argmax, Pool};
     use num_traits::Float;
     use std::arch::x86_64::*;
 
@@ -560,7 +560,7 @@ mod pool4 {
                     v.store(&mut o[n * k..]);
                 }
                 for i in blocks * n..len_out {
-                    o[i] = xb[4 * i + window_argmax_slow(&xa[4 * i..4 * i + 4])];
+                    o[i] = xb[4 * i + window_argmax(&xa[4 * i..4 * i + 4])];
                 }
             } else {
                 let g = &b[ch * len_out..][..len_out];
@@ -574,7 +574,7 @@ mod pool4 {
                     }
                 }
                 for i in blocks * n..len_out {
-                    let src = 4 * i + window_argmax_slow(&xa[4 * i..4 * i + 4]);
+                    let src = 4 * i + window_argmax(&xa[4 * i..4 * i + 4]);
                     xo[src] = xo[src] + g[i];
                 }
             }
