@@ -137,7 +137,10 @@ fn scratch(k: &gwml::compiler::codegen::Kernel) -> usize {
 fn split(layout: &gwml::compiler::codegen::Layout) -> String {
     match layout.split_loops {
         0 => String::new(),
-        n => format!(", {n} split at an interval condition"),
+        n => match layout.sums_skipped {
+            0 => format!(", {n} split at an interval condition"),
+            k => format!(", {n} split at an interval condition with {k} sum{} skipped on one side", plural(k)),
+        },
     }
 }
 

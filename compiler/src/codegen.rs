@@ -34,7 +34,7 @@ use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::fmt;
 
 /// What a buffer passed to the kernel holds.
@@ -92,6 +92,9 @@ pub struct Layout {
     /// How many of them are split at an interval condition (emitted once
     /// for each side of it, see `Gen::emit_loop`).
     pub split_loops: usize,
+    /// How many sums, in split loops, add nothing on one side (the
+    /// condition makes their terms +0 there) and are not accumulated on it.
+    pub sums_skipped: usize,
     /// The scene's precision (each buffer states its element type).
     pub precision: Precision,
     /// Per entry of [`Function::input_grads`], the buffer holding it
@@ -491,6 +494,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
         scalar_slots: 0,
         loops: 0,
         split_loops: 0,
+        sums_skipped: 0,
         precision: func.precision,
         input_grads: Vec::new(),
     };
@@ -524,7 +528,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     let storage_ty = if storage == Precision::F32 { types::F32 } else { types::F64 };
     let math64 = MathEmitter::new(module.isa(), types::F64, func.math);
     let math32 = MathEmitter::new(module.isa(), types::F32, func.math);
-    {
+    let sums_skipped = {
         let b = FunctionBuilder::new(&mut ctx.func, &mut fbc);
         let mut g = Gen {
             func,
@@ -541,6 +545,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
             wide,
             vector: None,
             sincos_slot: None,
+            sums_skipped: HashSet::new(),
             plans: &plans,
             math64,
             math32,
@@ -549,7 +554,9 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
         g.b.seal_all_blocks();
         let cfg = g.module.target_config();
         g.b.finalize(cfg);
-    }
+        g.sums_skipped.len()
+    };
+    layout.sums_skipped = sums_skipped;
     let clif = ctx.func.display().to_string();
     let clif_insts = ctx.func.dfg.num_insts();
     module.define_function(id, &mut ctx).map_err(|e| CodegenError(format!("{e:?}")))?;
@@ -611,6 +618,8 @@ struct Gen<'a> {
     /// ([`Function::wide_values`]).
     wide: Vec<bool>,
     sincos_slot: Option<cranelift_codegen::ir::StackSlot>,
+    /// Sums not accumulated on a side of a split loop (see [`Gen::known_zero`]).
+    sums_skipped: HashSet<usize>,
     plans: &'a [PlanBox],
     math64: MathEmitter,
     math32: MathEmitter,
@@ -1291,6 +1300,10 @@ impl<'a> Gen<'a> {
         for &m in &members {
             let inst = self.func.insts[m];
             if let Op::Reduce(r, a) = inst.op {
+                if r == Reduce::Sum && self.known_zero(&lc, a.index()) {
+                    self.sums_skipped.insert(m);
+                    continue;
+                }
                 let (_, re_var, im_var) = *accs.iter().find(|(k, ..)| *k == m).expect("accumulator declared");
                 if self.vector == Some(types::F32) {
                     // f32x4 (real) → two f64x2 halves, into the two accumulators.
@@ -1505,6 +1518,15 @@ impl<'a> Gen<'a> {
             lc.vals.insert(i, x);
             return Ok(x);
         }
+        if let Op::Binary(BinOp::Sub, a, b) = inst.op {
+            if self.known_constant(lc, b.index()) == Some((0, 0)) {
+                // x − (+0) is x, bit for bit (also for x = −0).
+                let x = self.loop_operand(lc, a)?;
+                let x = self.cast_cv(x, self.ty_of(i));
+                lc.vals.insert(i, x);
+                return Ok(x);
+            }
+        }
         if self.split(i) {
             let halves = self.wide_operand(lc, v)?;
             let x = self.demote_cv(halves);
@@ -1571,6 +1593,30 @@ impl<'a> Gen<'a> {
             Op::Select(k, a, b) if k.index() == c => Some(if holds { a } else { b }),
             _ => None,
         }
+    }
+
+    /// The value every element of array `i` statically holds in the range
+    /// being emitted, as (re, im) bit patterns: a broadcast constant, or a
+    /// select the known condition resolves to one.
+    fn known_constant(&self, lc: &LoopCtx, i: usize) -> Option<(u64, u64)> {
+        if let Some(taken) = self.resolved(lc, i) {
+            return self.known_constant(lc, taken.index());
+        }
+        match self.func.insts[i].op {
+            Op::Broadcast(a, _) => match self.func.insts[a.index()].op {
+                Op::Const(x) => Some((x, 0)),
+                Op::ConstComplex(re, im) => Some((re, im)),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
+    /// Whether array `i` is +0 (and +0i) over the range being emitted, so
+    /// that `x − i` is exactly `x` and a sum gains nothing from it (a sum
+    /// starts at +0, and never reaches −0, so adding ±0 leaves it as is).
+    fn known_zero(&self, lc: &LoopCtx, i: usize) -> bool {
+        self.known_constant(lc, i).is_some_and(|(re, im)| f64::from_bits(re) == 0.0 && f64::from_bits(im) == 0.0)
     }
 
     /// Whether array value `i` is split in the loop being emitted: computed
