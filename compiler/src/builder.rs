@@ -181,6 +181,13 @@ impl Builder {
             Op::Binary(BinOp::Mul, a, b) if one(self, b) => Some(a),
             Op::Binary(BinOp::Div, a, b) if one(self, b) => Some(a),
             Op::Binary(BinOp::Div, a, _) if zero(self, a) => Some(self.zero(ty)),
+            // z·conj(z) = |z|², the real part bit for bit (re² − im·(−im)
+            // is re² + im²) and the imaginary part exactly 0 for finite z.
+            Op::Binary(BinOp::Mul, a, b) if self.is_conj_of(a, b) || self.is_conj_of(b, a) => {
+                let z = if self.is_conj_of(a, b) { b } else { a };
+                let r = self.emit(Op::Unary(UnOp::Abs2, z));
+                Some(self.emit(Op::Unary(UnOp::ToComplex, r)))
+            }
             Op::Unary(UnOp::Neg, a) => match self.func.insts[a.index()].op {
                 Op::Unary(UnOp::Neg, x) => Some(x),
                 _ => None,
@@ -239,6 +246,11 @@ impl Builder {
             _ => None,
         }
         .or_else(|| self.sink_mask(op))
+    }
+
+    /// Whether `c` is `conj(z)`.
+    fn is_conj_of(&self, c: Value, z: Value) -> bool {
+        self.func.insts[c.index()].op == Op::Unary(UnOp::Conj, z)
     }
 
     /// `v` as an array masked by an interval condition

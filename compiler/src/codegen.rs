@@ -97,6 +97,9 @@ pub struct Layout {
     pub sums_skipped: usize,
     /// The scene's precision (each buffer states its element type).
     pub precision: Precision,
+    /// Per entry of [`Function::outputs`], the buffer holding it (`None`
+    /// for a scalar, which has a slot in `scalars`).
+    pub outputs: Vec<Option<usize>>,
     /// Per entry of [`Function::input_grads`], the buffer holding it
     /// (`None` for a scalar, which has a slot in `scalars`).
     pub input_grads: Vec<Option<usize>>,
@@ -338,10 +341,17 @@ fn schedule(func: &Function, wide: &[bool], layout: &mut Layout, plans: &mut Vec
         layout.buffers.push(BufferInfo { kind, len: func.len_of(ty.shape), complex: ty.elem == Elem::Complex, precision });
         stored.insert(v, layout.buffers.len() - 1);
     };
+    // Outputs of the same value (CSE merges `output a = x` and
+    // `output b = x`) share the buffer of the first.
     for (oi, o) in func.outputs.iter().enumerate() {
-        if func.ty(o.value).shape != Shape::Scalar {
-            need_store(o.value.index(), BufferKind::Output(oi), layout, &mut stored);
-        }
+        let buffer = (func.ty(o.value).shape != Shape::Scalar).then(|| match stored.get(&o.value.index()) {
+            Some(&buf) => buf,
+            None => {
+                need_store(o.value.index(), BufferKind::Output(oi), layout, &mut stored);
+                layout.buffers.len() - 1
+            }
+        });
+        layout.outputs.push(buffer);
     }
     for (gi, g) in func.input_grads.iter().enumerate() {
         let buffer = match g.value {
@@ -496,6 +506,7 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
         split_loops: 0,
         sums_skipped: 0,
         precision: func.precision,
+        outputs: Vec::new(),
         input_grads: Vec::new(),
     };
     let storage = func.precision.storage();
@@ -645,6 +656,19 @@ type Accs = Vec<(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Val
 impl<'a> Gen<'a> {
     fn f32(&self) -> bool {
         self.ft == types::F32
+    }
+
+    /// Whether `v` is the constant +0 (in every lane).
+    fn is_zero_const(&self, v: Option<cranelift_codegen::ir::Value>) -> bool {
+        use cranelift_codegen::ir::{InstructionData, Opcode, ValueDef};
+        let Some(v) = v else { return false };
+        let ValueDef::Result(inst, _) = self.b.func.dfg.value_def(v) else { return false };
+        match self.b.func.dfg.insts[inst] {
+            InstructionData::UnaryIeee64 { imm, .. } => imm.bits() == 0,
+            InstructionData::UnaryIeee32 { imm, .. } => imm.bits() == 0,
+            InstructionData::Unary { opcode: Opcode::Splat, arg } => self.is_zero_const(Some(arg)),
+            _ => false,
+        }
     }
 
     fn fconst(&mut self, x: f64) -> cranelift_codegen::ir::Value {
@@ -1823,6 +1847,13 @@ impl<'a> Gen<'a> {
                         re: self.b.ins().fsub(a.re, c.re),
                         im: complex.then(|| self.b.ins().fsub(a.im.expect("complex"), c.im.expect("complex"))),
                     },
+                    // A real factor (one whose imaginary part is the constant
+                    // +0, e.g. `tocomplex x`) scales both parts: the same
+                    // values as the full product, up to the sign of a zero.
+                    BinOp::Mul if complex && (self.is_zero_const(a.im) || self.is_zero_const(c.im)) => {
+                        let (z, x) = if self.is_zero_const(c.im) { (a, c.re) } else { (c, a.re) };
+                        Cv { re: self.b.ins().fmul(z.re, x), im: Some(self.b.ins().fmul(z.im.expect("complex"), x)) }
+                    }
                     BinOp::Mul if complex => {
                         let (ar, ai, cr, ci) = (a.re, a.im.expect("complex"), c.re, c.im.expect("complex"));
                         let rr = self.b.ins().fmul(ar, cr);

@@ -453,7 +453,7 @@ impl<'s> Run<'s> {
                     other => other,
                 }
             } else {
-                let k = layout.buffers.iter().position(|b| b.kind == BufferKind::Output(oi)).expect("array outputs have a buffer");
+                let k = layout.outputs[oi].expect("array outputs have a buffer");
                 let (complex, buf) = &self.scratch[k];
                 let n = layout.buffers[k].len;
                 if *complex {

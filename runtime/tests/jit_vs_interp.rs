@@ -439,6 +439,66 @@ fn vectorised_complex_loops_match_interpreter() {
     }
 }
 
+/// Two outputs of the same array (merged by CSE) both hold it: they share
+/// one buffer (before, only the last one was written and the other read
+/// back as zeros).
+#[test]
+fn outputs_of_the_same_array_both_hold_it() {
+    let src = "scene c {
+        grid t = times(rate: 8 Hz, duration: 1 s)
+        param a = 0.7
+        output r = a * t / 1 s
+        output s = sum(t) / 1 s
+        output r2 = a * t / 1 s
+    }";
+    let scene = Model::from_source("c.gw", src).unwrap().scene(None).unwrap();
+    let out = scene.bind().forward().unwrap();
+    for name in ["r", "r2"] {
+        let Ok(Value::RealArray(r)) = out.value(name) else { panic!("{name} is a real array") };
+        let want: Vec<f64> = (0..8).map(|k| 0.7 * (k as f64 / 8.0)).collect();
+        assert_eq!(r, &want, "{name}");
+    }
+    assert_eq!(out.scalar("s").unwrap(), 3.5);
+}
+
+/// `z · conj(z)` becomes `abs2 z` in the IR, and a complex value times a
+/// real one scales both parts (two multiplications, not a full complex
+/// product): in f64 both agree with the interpreter's complex arithmetic
+/// exactly, in the vector loop and its scalar tail.
+#[test]
+fn abs2_and_real_factors_are_exact() {
+    let src = "scene c {
+        grid t = times(rate: 61 Hz, duration: 1 s)
+        input z: complex[t] = 0.0
+        param a = 0.7
+        let u = a * t / 1 s
+        output p = z * u
+        output q = u * z
+        output n = z * conj(z)
+        output m = conj(z) * z
+    }";
+    let model = Model::from_source("c.gw", src).unwrap();
+    let z: Vec<num_complex::Complex64> =
+        (0..61).map(|k| num_complex::Complex64::new((k * 37 % 61) as f64 / 30.0 - 1.0, (k * 11 % 61) as f64 / 61.0 - 0.3)).collect();
+    let scene = model.scene_with(None, Options { precision: Some(Precision::F64), ..Default::default() }).unwrap();
+    let ir = scene.ir().to_string();
+    assert_eq!(ir.matches("abs2").count(), 1, "{ir}");
+    assert!(!ir.contains("conj"), "{ir}");
+    let mut run = scene.bind();
+    run.param("a", 0.7).unwrap().input_complex("z", &z).unwrap();
+    let out = run.forward().unwrap();
+    let f = scene.ir();
+    let r = interp::interpret(f, &[0.7], std::slice::from_ref(&z));
+    for name in ["p", "q", "n", "m"] {
+        let Ok(Value::ComplexArray(got)) = out.value(name) else { panic!("{name} is a complex array") };
+        let want = r.output(f, name).unwrap();
+        assert_eq!(got.len(), 61);
+        for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert!(g.re == w.re && g.im == w.im, "{name}[{k}]: {g} vs interpreter {w}");
+        }
+    }
+}
+
 /// sin, cos and cis in vectorised f64 loops run the inline code on f64x2
 /// and fall back to libm lane by lane outside its domain (|x| > 1.6e6):
 /// every lane agrees with Rust's (glibc's) sin/cos within each math mode's
