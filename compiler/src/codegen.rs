@@ -636,6 +636,10 @@ struct Gen<'a> {
     math32: MathEmitter,
 }
 
+/// The most operations (a complex one counting twice) a loop body may have
+/// to run two copies per vectorised iteration (see [`Gen::small_body`]).
+const SMALL_BODY: usize = 32;
+
 /// Per-iteration state of one loop.
 struct LoopCtx {
     epoch: u32,
@@ -1186,17 +1190,20 @@ impl<'a> Gen<'a> {
         let mut no_tail = len == Some(0);
         if let Some(lane) = self.vector_lane(l) {
             let lanes = (16 / lane.bytes()) as i64;
-            // The end of the whole vectors: statically when the range is
-            // the grid, else `from + (to − from) & −lanes`.
+            let copies = if self.small_body(l, known) { 2 } else { 1 };
+            let chunk = lanes * copies as i64;
+            // The end of the whole chunks (`copies` vectors each):
+            // statically when the range is the grid, else
+            // `from + (to − from) & −chunk`.
             let end = match len {
-                Some(len) if len < lanes => None,
+                Some(len) if len < chunk => None,
                 Some(len) => {
-                    no_tail = len % lanes == 0;
-                    Some(self.b.ins().iconst(types::I64, len - len % lanes))
+                    no_tail = len % chunk == 0;
+                    Some(self.b.ins().iconst(types::I64, len - len % chunk))
                 }
                 None => {
                     let count = self.b.ins().isub(to, from);
-                    let whole = self.b.ins().band_imm_s(count, -lanes);
+                    let whole = self.b.ins().band_imm_s(count, -chunk);
                     Some(self.b.ins().iadd(from, whole))
                 }
             };
@@ -1217,7 +1224,7 @@ impl<'a> Gen<'a> {
                     })
                     .collect();
                 self.vector = Some(lane);
-                let out = self.emit_loop_range(l, (from, end), lanes, known, &init);
+                let out = self.emit_loop_range(l, (from, end), (lanes, copies), known, &init);
                 self.vector = None;
                 let out = out?;
                 accs = Vec::new();
@@ -1235,7 +1242,7 @@ impl<'a> Gen<'a> {
             }
         }
         if !no_tail {
-            accs = self.emit_loop_range(l, (start, to), 1, known, &accs)?;
+            accs = self.emit_loop_range(l, (start, to), (1, 1), known, &accs)?;
         }
         Ok(accs)
     }
@@ -1284,22 +1291,29 @@ impl<'a> Gen<'a> {
         &mut self,
         l: usize,
         (from, to): (cranelift_codegen::ir::Value, cranelift_codegen::ir::Value),
-        step: i64,
+        (step, copies): (i64, usize),
         known: Option<(usize, bool)>,
         init: &[(cranelift_codegen::ir::Value, Option<cranelift_codegen::ir::Value>)],
     ) -> Result<Accs, CodegenError> {
         let members = self.sched.loops[l].2.clone();
-        let mut accs: Vec<(usize, Variable, Option<Variable>)> = Vec::new();
-        let reductions = members.iter().filter(|&&m| matches!(self.func.insts[m].op, Op::Reduce(..)));
-        for (&m, &(re0, im0)) in reductions.zip(init) {
-            let re = self.b.declare_var(self.b.func.dfg.value_type(re0));
-            self.b.def_var(re, re0);
-            let im = im0.map(|v| {
-                let im = self.b.declare_var(self.b.func.dfg.value_type(v));
-                self.b.def_var(im, v);
-                im
-            });
-            accs.push((m, re, im));
+        // Per copy of the body, each reduction's accumulators (all start
+        // from `init`: the vectorised part, the only one with copies,
+        // starts from the reductions' identities).
+        let mut accs: Vec<Vec<(usize, Variable, Option<Variable>)>> = Vec::new();
+        for _ in 0..copies {
+            let mut copy = Vec::new();
+            let reductions = members.iter().filter(|&&m| matches!(self.func.insts[m].op, Op::Reduce(..)));
+            for (&m, &(re0, im0)) in reductions.zip(init) {
+                let re = self.b.declare_var(self.b.func.dfg.value_type(re0));
+                self.b.def_var(re, re0);
+                let im = im0.map(|v| {
+                    let im = self.b.declare_var(self.b.func.dfg.value_type(v));
+                    self.b.def_var(im, v);
+                    im
+                });
+                copy.push((m, re, im));
+            }
+            accs.push(copy);
         }
         let ivar = self.b.declare_var(types::I64);
         self.b.def_var(ivar, from);
@@ -1320,11 +1334,49 @@ impl<'a> Gen<'a> {
         let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, i, to);
         self.b.ins().brif(done, exit, &[], body, &[]);
         self.b.switch_to_block(body);
-        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index: i, vals: HashMap::new(), halves: HashMap::new(), known };
-        for &m in &members {
+        for (copy, accs) in accs.iter().enumerate() {
+            let index = if copy == 0 { i } else { self.b.ins().iadd_imm_s(i, step * copy as i64) };
+            self.emit_body_copy(l, &members, index, known, accs)?;
+        }
+        let next = self.b.ins().iadd_imm_s(i, step * copies as i64);
+        self.b.def_var(ivar, next);
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(exit);
+        // The copies' partial results, combined.
+        let mut out: Accs = Vec::new();
+        for (k, &(m, re, im)) in accs[0].iter().enumerate() {
+            let Op::Reduce(r, a) = self.func.insts[m].op else { unreachable!("accumulators belong to reductions") };
+            let complex = self.func.ty(a).elem == Elem::Complex;
+            let (mut re, mut im) = (self.b.use_var(re), im.map(|v| self.b.use_var(v)));
+            for copy in &accs[1..] {
+                let (_, re1, im1) = copy[k];
+                let re1 = self.b.use_var(re1);
+                re = self.reduce_step(r, re, re1);
+                if let (Some(x), Some(im1)) = (im, im1) {
+                    let y = self.b.use_var(im1);
+                    // The second slot: an imaginary part, or lanes 2–3.
+                    im = Some(if complex { self.b.ins().fadd(x, y) } else { self.reduce_step(r, x, y) });
+                }
+            }
+            out.push((re, im));
+        }
+        Ok(out)
+    }
+
+    /// One copy of loop `l`'s body, at `index`, accumulating into `accs`.
+    fn emit_body_copy(
+        &mut self,
+        l: usize,
+        members: &[usize],
+        index: cranelift_codegen::ir::Value,
+        known: Option<(usize, bool)>,
+        accs: &[(usize, Variable, Option<Variable>)],
+    ) -> Result<(), CodegenError> {
+        let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index, vals: HashMap::new(), halves: HashMap::new(), known };
+        for &m in members {
             let inst = self.func.insts[m];
             if let Op::Reduce(r, a) = inst.op {
-                if r == Reduce::Sum && self.known_zero(&lc, a.index()) {
+                if r == Reduce::Sum && self.known_zero(known, a.index()) {
                     self.sums_skipped.insert(m);
                     continue;
                 }
@@ -1379,17 +1431,7 @@ impl<'a> Gen<'a> {
                 self.store_elem(buf, lc.index, v, inst.ty.elem == Elem::Complex);
             }
         }
-        let next = self.b.ins().iadd_imm_s(i, step);
-        self.b.def_var(ivar, next);
-        self.b.ins().jump(header, &[]);
-        self.b.switch_to_block(exit);
-        Ok(accs
-            .into_iter()
-            .map(|(_, re, im)| {
-                let re = self.b.use_var(re);
-                (re, im.map(|v| self.b.use_var(v)))
-            })
-            .collect())
+        Ok(())
     }
 
     /// One step of reduction `r`: `acc + x` or `max(acc, x)`.
@@ -1537,13 +1579,13 @@ impl<'a> Gen<'a> {
                 None => x,
             });
         }
-        if let Some(taken) = self.resolved(lc, i) {
+        if let Some(taken) = self.resolved(lc.known, i) {
             let x = self.loop_operand(lc, taken)?;
             lc.vals.insert(i, x);
             return Ok(x);
         }
         if let Op::Binary(BinOp::Sub, a, b) = inst.op {
-            if self.known_constant(lc, b.index()) == Some((0, 0)) {
+            if self.known_constant(lc.known, b.index()) == Some((0, 0)) {
                 // x − (+0) is x, bit for bit (also for x = −0).
                 let x = self.loop_operand(lc, a)?;
                 let x = self.cast_cv(x, self.ty_of(i));
@@ -1611,8 +1653,8 @@ impl<'a> Gen<'a> {
 
     /// The side a select `i` takes when its condition is known over the
     /// range being emitted.
-    fn resolved(&self, lc: &LoopCtx, i: usize) -> Option<Value> {
-        let (c, holds) = lc.known?;
+    fn resolved(&self, known: Option<(usize, bool)>, i: usize) -> Option<Value> {
+        let (c, holds) = known?;
         match self.func.insts[i].op {
             Op::Select(k, a, b) if k.index() == c => Some(if holds { a } else { b }),
             _ => None,
@@ -1622,9 +1664,9 @@ impl<'a> Gen<'a> {
     /// The value every element of array `i` statically holds in the range
     /// being emitted, as (re, im) bit patterns: a broadcast constant, or a
     /// select the known condition resolves to one.
-    fn known_constant(&self, lc: &LoopCtx, i: usize) -> Option<(u64, u64)> {
-        if let Some(taken) = self.resolved(lc, i) {
-            return self.known_constant(lc, taken.index());
+    fn known_constant(&self, known: Option<(usize, bool)>, i: usize) -> Option<(u64, u64)> {
+        if let Some(taken) = self.resolved(known, i) {
+            return self.known_constant(known, taken.index());
         }
         match self.func.insts[i].op {
             Op::Broadcast(a, _) => match self.func.insts[a.index()].op {
@@ -1636,11 +1678,70 @@ impl<'a> Gen<'a> {
         }
     }
 
+    /// Whether loop `l`'s body, with `known` resolving selects, is a few
+    /// arithmetic operations (at most [`SMALL_BODY`], no function calls
+    /// or inline transcendentals). Such a loop is bound by the latency of
+    /// its reductions' accumulators (an f64x2 add every 4 cycles): its
+    /// vectorised part runs two copies of the body per iteration, each
+    /// with its own accumulators, added at the end.
+    fn small_body(&self, l: usize, known: Option<(usize, bool)>) -> bool {
+        let members = &self.sched.loops[l].2;
+        let mut seen = HashSet::new();
+        let mut cost = 0;
+        let mut stack: Vec<usize> = Vec::new();
+        for &m in members {
+            match self.func.insts[m].op {
+                Op::Reduce(r, a) if !(r == Reduce::Sum && self.known_zero(known, a.index())) => stack.push(a.index()),
+                Op::Reduce(..) => {}
+                _ if known.is_none() || self.sched.stored.contains_key(&m) => stack.push(m),
+                _ => {}
+            }
+        }
+        while let Some(i) = stack.pop() {
+            let inst = self.func.insts[i];
+            if inst.ty.shape == Shape::Scalar || !seen.insert(i) {
+                continue;
+            }
+            if let Some(taken) = self.resolved(known, i) {
+                stack.push(taken.index());
+                continue;
+            }
+            if matches!(inst.op, Op::Broadcast(..)) {
+                continue; // hoisted out of the loop
+            }
+            cost += if inst.ty.elem == Elem::Complex { 2 } else { 1 };
+            match inst.op {
+                Op::GridCoord(_) | Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) => {}
+                _ if self.reloaded(i, self.sched.loops[l].0) => {}
+                Op::Unary(UnOp::Neg | UnOp::Abs | UnOp::Re | UnOp::Im | UnOp::Conj | UnOp::Abs2 | UnOp::ToComplex, a) => {
+                    stack.push(a.index())
+                }
+                Op::Binary(
+                    BinOp::Add
+                    | BinOp::Sub
+                    | BinOp::Mul
+                    | BinOp::Div
+                    | BinOp::Min
+                    | BinOp::Max
+                    | BinOp::Lt
+                    | BinOp::Le
+                    | BinOp::Gt
+                    | BinOp::Ge,
+                    a,
+                    b,
+                ) => stack.extend([a.index(), b.index()]),
+                Op::Select(c, a, b) => stack.extend([c.index(), a.index(), b.index()]),
+                _ => return false,
+            }
+        }
+        cost <= SMALL_BODY
+    }
+
     /// Whether array `i` is +0 (and +0i) over the range being emitted, so
     /// that `x − i` is exactly `x` and a sum gains nothing from it (a sum
     /// starts at +0, and never reaches −0, so adding ±0 leaves it as is).
-    fn known_zero(&self, lc: &LoopCtx, i: usize) -> bool {
-        self.known_constant(lc, i).is_some_and(|(re, im)| f64::from_bits(re) == 0.0 && f64::from_bits(im) == 0.0)
+    fn known_zero(&self, known: Option<(usize, bool)>, i: usize) -> bool {
+        self.known_constant(known, i).is_some_and(|(re, im)| f64::from_bits(re) == 0.0 && f64::from_bits(im) == 0.0)
     }
 
     /// Whether array value `i` is split in the loop being emitted: computed
@@ -1665,7 +1766,7 @@ impl<'a> Gen<'a> {
             return Ok(*h);
         }
         let inst = self.func.insts[i];
-        let halves = if let Some(taken) = self.resolved(lc, i) {
+        let halves = if let Some(taken) = self.resolved(lc.known, i) {
             self.wide_operand(lc, taken)?
         } else if inst.ty.shape == Shape::Scalar {
             let x = self.vals[&i];

@@ -439,6 +439,79 @@ fn vectorised_complex_loops_match_interpreter() {
     }
 }
 
+/// A loop of a few arithmetic operations runs two copies of its body per
+/// vectorised iteration, each with its own accumulators (so the adds do
+/// not wait on each other), and the scalar tail takes what is left: sums
+/// and maxima over lengths around multiples of the chunk (4 in f64, 8 in
+/// f32) agree with the interpreter.
+#[test]
+fn small_loops_run_two_copies_per_iteration() {
+    for n in [3, 4, 5, 8, 9, 15, 16, 17, 61] {
+        let src = format!(
+            "scene c {{
+                grid t = times(rate: {n} Hz, duration: 1 s)
+                input x: real[t] = 0.0
+                output s = sum(x * x - 0.25 * x)
+                output m = max(x)
+            }}"
+        );
+        let model = Model::from_source("c.gw", &src).unwrap();
+        let x: Vec<f64> = (0..n).map(|k| ((k * 37 % 61) as f64 / 30.0 - 1.0) * 0.8).collect();
+        let input = vec![x.iter().map(|&v| num_complex::Complex64::new(v, 0.0)).collect()];
+        for (precision, lanes, chunk, tol) in [(Precision::F64, "f64x2", 4, 1e-15), (Precision::F32, "f32x4", 8, 1e-6)] {
+            let scene = model.scene_with(None, Options { precision: Some(precision), ..Default::default() }).unwrap();
+            let clif = &scene.forward_kernel().clif;
+            // Grids shorter than a chunk run the scalar loop only.
+            let copies = if n >= chunk { 2 } else { 0 };
+            assert_eq!(clif.matches(&format!("load.{lanes}")).count(), copies, "{precision:?}, n = {n}\n{clif}");
+            let mut run = scene.bind();
+            run.input_real("x", &x).unwrap();
+            let out = run.forward().unwrap();
+            let f = scene.ir();
+            let r = interp::interpret(f, &[], &input);
+            for name in ["s", "m"] {
+                let (got, want) = (out.scalar(name).unwrap(), r.output(f, name).unwrap()[0].re);
+                assert!((got - want).abs() <= tol * want.abs().max(1.0), "{precision:?}, n = {n}: {name} {got} vs {want}");
+            }
+        }
+    }
+}
+
+/// In `fast` and `fastest` math a division by a grid-only array (a PSD) is
+/// a multiplication by a table of its reciprocals, within an ulp or two of
+/// the division `exact` keeps.
+#[test]
+fn fast_math_divides_by_grid_arrays_through_reciprocal_tables() {
+    let src = "scene c {
+        grid t = times(rate: 61 Hz, duration: 1 s)
+        input x: real[t] = 0.0
+        param a = 0.7
+        let psd = 1.0 + (t / 1 s) ^ 2.0
+        output w = (a * x) / psd
+        output s = sum(x * x / psd)
+    }";
+    let model = Model::from_source("c.gw", src).unwrap();
+    let x: Vec<f64> = (0..61).map(|k| (k * 37 % 61) as f64 / 30.0 - 1.0).collect();
+    let mut results = Vec::new();
+    for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
+        let scene = model.scene_with(None, Options { math: Some(math), ..Default::default() }).unwrap();
+        let ir = scene.ir().to_string();
+        assert_eq!(ir.contains(" div "), math == MathMode::Exact, "{math:?}\n{ir}");
+        let mut run = scene.bind();
+        run.param("a", 0.7).unwrap().input_real("x", &x).unwrap();
+        let out = run.forward().unwrap();
+        let Ok(Value::RealArray(w)) = out.value("w") else { panic!("w is a real array") };
+        results.push((w.clone(), out.scalar("s").unwrap()));
+    }
+    let (w0, s0) = &results[0];
+    for (w, s) in &results[1..] {
+        for (k, (a, b)) in w.iter().zip(w0).enumerate() {
+            assert!((a - b).abs() <= 4.0 * f64::EPSILON * b.abs(), "w[{k}]: {a} vs exact {b}");
+        }
+        assert!((s - s0).abs() <= 4.0 * f64::EPSILON * s0.abs(), "s: {s} vs exact {s0}");
+    }
+}
+
 /// Two outputs of the same array (merged by CSE) both hold it: they share
 /// one buffer (before, only the last one was written and the other read
 /// back as zeros).

@@ -15,6 +15,10 @@
 //!   is itself such a split power, so TaylorF2's `log v` with
 //!   `v = (π M f)^(1/3)` costs one scalar log per call and a table read.
 //!
+//! - in `fast` and `fastest` math, `x / a → x · (1/a)` for a grid-only
+//!   array `a` (a noise PSD), so the kernel multiplies by a table of
+//!   reciprocals instead of dividing.
+//!
 //! Then every real grid-only array that a non-grid-only instruction (or a
 //! result) uses, and that costs more than a load, becomes a table.
 
@@ -118,6 +122,21 @@ fn split_powers(func: &Function) -> Function {
                     }
                     rewritten = Some(v);
                 }
+            }
+        }
+        if let (Op::Binary(BinOp::Div, x, y), MathMode::Fast | MathMode::Fastest) = (inst.op, func.math) {
+            // x / a = x · (1/a) for a grid-only real array a: a table of
+            // reciprocals and a multiplication per bin instead of a
+            // division (up to 1 ulp more error, so not in `exact`).
+            let array = match func.ty(y).shape {
+                Shape::Grid(g) if grid_only[y.index()] && !grid_only[x.index()] && scalar_of(y).is_none() => Some(g),
+                _ => None,
+            };
+            if let (Some(g), Elem::Real, Elem::Real) = (array, func.ty(y).elem, inst.ty.elem) {
+                let one = b.constant(num_complex::Complex64::new(1.0, 0.0), Ty::REAL);
+                let ones = b.emit(Op::Broadcast(one, g));
+                let reciprocal = b.div(ones, map[y.index()]);
+                rewritten = Some(b.mul(map[x.index()], reciprocal));
             }
         }
         if let (Op::Unary(UnOp::Log, base), Shape::Grid(g)) = (inst.op, inst.ty.shape) {
