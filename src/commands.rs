@@ -43,7 +43,7 @@ fn math(m: MathArg) -> MathMode {
 
 pub(crate) fn options(k: KnobArgs) -> Result<Options, String> {
     let knobs = k.knobs.iter().map(|s| knob_assignment(s, "--knob")).collect::<Result<Vec<_>, _>>()?;
-    Ok(Options { knobs, precision: k.precision.map(precision), math: k.math.map(math) })
+    Ok(Options { knobs, precision: k.precision.map(precision), math: k.math.map(math), outputs: None })
 }
 
 /// `gwml compile`.
@@ -508,7 +508,10 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
         other => render(other),
     })?;
     print!("{}", table(&rows));
-    println!("(* = Pareto-optimal in time and error; speed-up of fwd+grad, or forward, relative to f64 exact; median of {} calls)", a.reps);
+    println!(
+        "(* = Pareto-optimal in time and error; speed-up of value+grad (the differentiated outputs and their gradients only), or forward (every output), relative to f64 exact; median of {} calls)",
+        a.reps
+    );
     if let Some(p) = &a.csv {
         std::fs::write(p, csv(&rows)).map_err(|e| format!("error: cannot write {}: {e}", p.display()))?;
     }

@@ -25,6 +25,10 @@ enum Command {
     /// Check a model, differentiate it, JIT-compile it and report.
     Compile(CompileArgs),
     /// Time a scene under every precision/math setting and measure each one's error against f64-exact.
+    ///
+    /// Each setting is timed twice: a forward call computing every output,
+    /// and (scenes with `grad`) a value-and-gradient call compiled with only
+    /// the differentiated outputs, as a sampler or optimiser calls it.
     Tradeoff(TradeoffArgs),
     /// Evaluate a scene's outputs (and gradients with --grad).
     Run(RunArgs),

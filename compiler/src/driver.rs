@@ -61,6 +61,11 @@ pub struct Options {
     /// Overrides of the scene's `knob` values: name and value as source text
     /// (`("df", "0.25 Hz")`); the scene is checked and lowered again with them.
     pub knobs: Vec<(String, String)>,
+    /// Compile only these outputs (and their gradients); `None` for all.
+    /// `gwml tradeoff` times value-and-gradient this way, as a sampler or
+    /// optimiser calls it, without the array outputs kept for its error
+    /// columns.
+    pub outputs: Option<Vec<String>>,
 }
 
 /// Instruction counts and times of each stage, for `gwml compile --stats`.
@@ -215,6 +220,12 @@ impl Program {
         }
         if let Some(p) = opts.precision {
             checked.precision = p;
+        }
+        if let Some(keep) = &opts.outputs {
+            if let Some(unknown) = keep.iter().find(|k| !checked.outputs.iter().any(|o| &o.name == *k)) {
+                return Err(format!("scene `{}` has no output `{unknown}`", checked.name));
+            }
+            checked.retain_outputs(|o| keep.contains(&o.name));
         }
         Ok(run_passes(checked))
     }

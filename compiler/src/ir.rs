@@ -638,6 +638,27 @@ pub struct Function {
 }
 
 impl Function {
+    /// Keeps the outputs `keep` accepts, and the gradients of those (a
+    /// later prune drops what only the others needed).
+    pub fn retain_outputs(&mut self, keep: impl Fn(&Output) -> bool) {
+        let kept: Vec<bool> = self.outputs.iter().map(&keep).collect();
+        let mut new_index = Vec::with_capacity(kept.len());
+        let mut n = 0;
+        for &k in &kept {
+            new_index.push(n);
+            n += usize::from(k);
+        }
+        let mut i = 0;
+        self.outputs.retain(|_| {
+            i += 1;
+            kept[i - 1]
+        });
+        self.grads.retain(|g| kept[g.output]);
+        self.grads.iter_mut().for_each(|g| g.output = new_index[g.output]);
+        self.input_grads.retain(|g| kept[g.output]);
+        self.input_grads.iter_mut().for_each(|g| g.output = new_index[g.output]);
+    }
+
     /// Type of `v`.
     pub fn ty(&self, v: Value) -> Ty {
         self.insts[v.index()].ty
