@@ -446,6 +446,11 @@ mod pool4 {
         fn gt(self, o: Self) -> Self;
         fn unordered(self, o: Self) -> Self;
         fn eq(self, o: Self) -> Self;
+        /// `self > o ? self : o` per lane (SSE's max: `o` when either is
+        /// NaN or both are zeros).
+        fn max(self, o: Self) -> Self;
+        /// Whether any lane of a mask is set.
+        fn any(self) -> bool;
         /// A block's four registers in memory order to the four positions
         /// (register `w` holds position `w` of every window in the block).
         fn to_columns(rows: [Self; 4]) -> [Self; 4];
@@ -456,7 +461,7 @@ mod pool4 {
     /// Implements [`Lanes`] for register type `$v` of `$n` values of `$t`
     /// with the named SSE/SSE2 intrinsics and transposes.
     macro_rules! lanes {
-        ($v:ty, $t:ty, $n:expr, $load:ident, $store:ident, $set1:ident, $columns:ident, $rows:ident,
+        ($v:ty, $t:ty, $n:expr, $load:ident, $store:ident, $set1:ident, $movemask:ident, $columns:ident, $rows:ident,
          $($op:ident: $intrinsic:ident),*) => {
             // SAFETY (every method): SSE and SSE2 are part of x86-64's
             // baseline, and `load`/`store` touch the first `$n` elements of
@@ -476,6 +481,9 @@ mod pool4 {
                 $(fn $op(self, o: Self) -> Self {
                     unsafe { $intrinsic(self, o) }
                 })*
+                fn any(self) -> bool {
+                    unsafe { $movemask(self) != 0 }
+                }
                 fn to_columns(rows: [Self; 4]) -> [Self; 4] {
                     $columns(rows)
                 }
@@ -510,13 +518,13 @@ mod pool4 {
     }
 
     #[rustfmt::skip]
-    lanes!(__m128, f32, 4, _mm_loadu_ps, _mm_storeu_ps, _mm_set1_ps, transpose_ps, transpose_ps,
+    lanes!(__m128, f32, 4, _mm_loadu_ps, _mm_storeu_ps, _mm_set1_ps, _mm_movemask_ps, transpose_ps, transpose_ps,
            and: _mm_and_ps, or: _mm_or_ps, and_not: _mm_andnot_ps, add: _mm_add_ps,
-           gt: _mm_cmpgt_ps, unordered: _mm_cmpunord_ps, eq: _mm_cmpeq_ps);
+           gt: _mm_cmpgt_ps, unordered: _mm_cmpunord_ps, eq: _mm_cmpeq_ps, max: _mm_max_ps);
     #[rustfmt::skip]
-    lanes!(__m128d, f64, 2, _mm_loadu_pd, _mm_storeu_pd, _mm_set1_pd, columns_pd, rows_pd,
+    lanes!(__m128d, f64, 2, _mm_loadu_pd, _mm_storeu_pd, _mm_set1_pd, _mm_movemask_pd, columns_pd, rows_pd,
            and: _mm_and_pd, or: _mm_or_pd, and_not: _mm_andnot_pd, add: _mm_add_pd,
-           gt: _mm_cmpgt_pd, unordered: _mm_cmpunord_pd, eq: _mm_cmpeq_pd);
+           gt: _mm_cmpgt_pd, unordered: _mm_cmpunord_pd, eq: _mm_cmpeq_pd, max: _mm_max_pd);
 
     /// The block of `4 · LANES` values at the start of `x`, as columns.
     #[inline(always)]
@@ -537,6 +545,14 @@ mod pool4 {
         [0, 1, 2, 3].map(|w| best.eq(V::splat(w as f64)))
     }
 
+    /// Per lane (window), its maximum by a strict `>` scan from −inf: the
+    /// value [`winners`] picks (ties keep the first, NaN never wins),
+    /// except that a window of NaN and −inf only gives −inf.
+    #[inline(always)]
+    fn maxima<V: Lanes>(c: [V; 4]) -> V {
+        c.iter().fold(V::splat(f64::NEG_INFINITY), |top, &v| v.max(top))
+    }
+
     /// [`super::Scalar::max_pool_vector`] for windows of 4 at stride 4.
     #[inline(always)]
     fn windows_of_4<V: Lanes>(pick: bool, p: Pool, a: &[V::T], b: &[V::T], out: &mut [V::T]) -> bool {
@@ -546,9 +562,28 @@ mod pool4 {
         let (len_in, len_out) = (p.len_in as usize, p.len_out as usize);
         let (n, span) = (V::LANES, 4 * V::LANES);
         let blocks = len_out / n;
+        // Picking a window's maximum from itself (max pooling's forward)
+        // needs no positions.
+        let own = pick && std::ptr::eq(a, b);
         for ch in 0..p.channels as usize {
             let xa = &a[ch * len_in..][..len_out * 4];
-            if pick {
+            if own {
+                let o = &mut out[ch * len_out..][..len_out];
+                for k in 0..blocks {
+                    let top = maxima(block::<V>(&xa[span * k..]));
+                    if top.eq(V::splat(f64::NEG_INFINITY)).any() {
+                        // A window of NaN and −inf only: the scan decides.
+                        for i in n * k..n * (k + 1) {
+                            o[i] = xa[4 * i + window_argmax(&xa[4 * i..4 * i + 4])];
+                        }
+                    } else {
+                        top.store(&mut o[n * k..]);
+                    }
+                }
+                for i in blocks * n..len_out {
+                    o[i] = xa[4 * i + window_argmax(&xa[4 * i..4 * i + 4])];
+                }
+            } else if pick {
                 let xb = &b[ch * len_in..][..len_out * 4];
                 let o = &mut out[ch * len_out..][..len_out];
                 for k in 0..blocks {
@@ -771,7 +806,9 @@ mod tests {
     /// Max pooling over windows of 4 in `T` (vector code on x86-64) picks
     /// and scatters exactly as the window-by-window scan, with NaN, ±inf,
     /// ±0 and ties, in full blocks, in the tail and with input left over
-    /// after the last window.
+    /// after the last window; so do the maxima of a pick from the input
+    /// itself (the forward's own path), windows of NaN and −inf only
+    /// included.
     fn windows_of_4_match_the_scan<T: Scalar>() {
         let special = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.5, 0.5, -0.0, 0.0];
         let t = |v: f64| T::from(v).unwrap_or_else(T::nan);
@@ -789,7 +826,27 @@ mod tests {
             let (mut pick, mut scatter) = (vec![T::zero(); (channels * len_out) as usize], vec![T::zero(); (channels * len_in) as usize]);
             pool_argmax(p, &x, |src, dst| pick[dst] = y[src]);
             pool_argmax(p, &x, |src, dst| scatter[src] = scatter[src] + g[dst]);
+            let mut own = vec![T::zero(); pick.len()];
+            pool_argmax(p, &x, |src, dst| own[dst] = x[src]);
+            // Windows of NaN and −inf only, and zero ties, in the first block.
+            let mut edge = x.clone();
+            let windows = [
+                [f64::NAN; 4],
+                [f64::NEG_INFINITY, f64::NAN, f64::NEG_INFINITY, f64::NAN],
+                [-0.0, 0.0, -0.0, 0.0],
+                [0.0, -0.0, f64::NAN, -0.0],
+            ];
+            for (w, values) in windows.iter().enumerate().take(len_out as usize) {
+                for (j, v) in values.iter().enumerate() {
+                    edge[4 * w + j] = t(*v);
+                }
+            }
+            let mut own_edge = vec![T::zero(); pick.len()];
+            pool_argmax(p, &edge, |src, dst| own_edge[dst] = edge[src]);
             let (mut got_pick, mut got_scatter) = (vec![T::one(); pick.len()], vec![T::one(); scatter.len()]);
+            let (mut got_own, mut got_own_edge) = (vec![T::one(); pick.len()], vec![T::one(); pick.len()]);
+            apply(TensorOp::PoolPick(p), &x, &x, &mut got_own);
+            apply(TensorOp::PoolPick(p), &edge, &edge, &mut got_own_edge);
             apply(TensorOp::PoolPick(p), &x, &y, &mut got_pick);
             apply(TensorOp::PoolScatter(p), &x, &g, &mut got_scatter);
             let same = |a: &[T], b: &[T]| {
@@ -799,6 +856,8 @@ mod tests {
                         .all(|(p, q)| p.is_nan() && q.is_nan() || p.to_f64().map(f64::to_bits) == q.to_f64().map(f64::to_bits))
             };
             assert!(same(&got_pick, &pick), "pick, {channels} × {len_in}");
+            assert!(same(&got_own, &own), "maxima, {channels} × {len_in}");
+            assert!(same(&got_own_edge, &own_edge), "maxima of NaN, -inf and zeros, {channels} × {len_in}");
             assert!(same(&got_scatter, &scatter), "scatter, {channels} × {len_in}");
         }
     }
