@@ -529,7 +529,10 @@ mod pool4 {
     /// The block of `4 · LANES` values at the start of `x`, as columns.
     #[inline(always)]
     fn block<V: Lanes>(x: &[V::T]) -> [V; 4] {
-        V::to_columns([0, 1, 2, 3].map(|i| V::load(&x[i * V::LANES..])))
+        // Written out: `[0, 1, 2, 3].map(..)` was left as a call to
+        // `array::try_map` (3 % of the glitch CNN's f32 inference).
+        let n = V::LANES;
+        V::to_columns([V::load(x), V::load(&x[n..]), V::load(&x[2 * n..]), V::load(&x[3 * n..])])
     }
 
     /// Per lane (window), the mask of the position its scan ends on.
@@ -542,7 +545,7 @@ mod pool4 {
             top = select(take, v, top);
             best = select(take, V::splat(w as f64), best);
         }
-        [0, 1, 2, 3].map(|w| best.eq(V::splat(w as f64)))
+        [best.eq(V::splat(0.0)), best.eq(V::splat(1.0)), best.eq(V::splat(2.0)), best.eq(V::splat(3.0))]
     }
 
     /// Per lane (window), its maximum by a strict `>` scan from −inf: the
@@ -602,7 +605,8 @@ mod pool4 {
                 let xo = &mut out[ch * len_in..][..len_out * 4];
                 for k in 0..blocks {
                     let gv = V::load(&g[n * k..]);
-                    let rows = V::to_rows(winners(block::<V>(&xa[span * k..])).map(|mw| mw.and(gv)));
+                    let [m0, m1, m2, m3] = winners(block::<V>(&xa[span * k..]));
+                    let rows = V::to_rows([m0.and(gv), m1.and(gv), m2.and(gv), m3.and(gv)]);
                     for (i, r) in rows.into_iter().enumerate() {
                         let dst = &mut xo[span * k + n * i..];
                         V::load(dst).add(r).store(dst);
