@@ -3,8 +3,8 @@
 //!
 //! - `burst`: the small burst-detection CNN of `examples/burst_cnn.gw`
 //!   (input 256 samples, conv 8×1×16 + ReLU, max pool 4, conv 16×8×8 +
-//!   ReLU, global max pool, dense 2×16, cross-entropy), f64, on
-//!   `gwml_runtime::synth::bursts` data;
+//!   ReLU, global max pool, dense 2×16, cross-entropy), in f64 (the
+//!   scene's own precision) and f32, on `gwml_runtime::synth::bursts` data;
 //! - `glitch`: the glitch experiment's CNN of `examples/glitch/cnn.gw`, the
 //!   shape issue #4 names (input 4,096 samples, four convolutions of 8–32
 //!   channels with kernels of 16 and 8, ReLU, max pooling, a dense head of
@@ -134,7 +134,10 @@ fn main() {
     let root = env!("CARGO_MANIFEST_DIR");
     if wants("burst") {
         let data = bursts(&BurstOptions { n: EXAMPLES, seed: 1, ..Default::default() }).unwrap_or_else(|e| panic!("{e}"));
-        bench("cnn", &format!("{root}/examples/burst_cnn.gw"), Precision::F64, 2, &data, reps);
+        // The scene's own precision (f64), and f32 to set beside PyTorch's f32.
+        for (tag, precision) in [("cnn", Precision::F64), ("cnn_f32", Precision::F32)] {
+            bench(tag, &format!("{root}/examples/burst_cnn.gw"), precision, 2, &data, reps);
+        }
     }
     if wants("glitch") {
         let data = noise_data(EXAMPLES, 4096, 6, 1);
