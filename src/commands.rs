@@ -499,8 +499,23 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
                 .map_err(render)?;
         }
     }
-    let configs = with_knob_sweeps(configs, &sweeps);
-    let settings = Settings { configs, reps: a.reps, psd: a.psd.clone() };
+    let mut fixed: Vec<(String, String)> = Vec::new();
+    for k in &a.knob {
+        let (name, value) = knob_assignment(k, "--knob")?;
+        if sweeps.iter().any(|(n, _)| *n == name) {
+            return Err(format!("error: knob `{name}` is both set (--knob) and swept (--sweep); give one of them"));
+        }
+        fixed.retain(|(n, _)| *n != name);
+        fixed.push((name, value));
+    }
+    if !fixed.is_empty() {
+        model.scene_with(a.scene.as_deref(), Options { knobs: fixed.clone(), ..Default::default() }).map_err(render)?;
+    }
+    let configs = with_knob_sweeps(configs, &sweeps)
+        .into_iter()
+        .map(|c| Config { knobs: fixed.iter().cloned().chain(c.knobs).collect(), ..c })
+        .collect();
+    let settings = Settings { configs, reps: a.reps, psd: a.psd.clone(), knobs: fixed };
     let bind = |run: &mut gwml::Run| bind_args(run, &a.bind).map_err(Error::Bind);
     let mut progress = |i: usize, count: usize, c: &Config| eprintln!("[{}/{count}] {}", i + 1, c.label());
     let rows = sweep(&model, a.scene.as_deref(), &settings, &bind, &mut progress).map_err(|e| match e {

@@ -503,9 +503,14 @@ pub struct TradeoffArgs {
     /// Also sweep one of the scene's `knob` declarations over comma-separated
     /// values, NAME=V1,V2,... (`--sweep df="0.25 Hz,0.5 Hz"`,
     /// `--sweep pn_order=4,6`); repeatable (every combination is measured).
-    /// The reference keeps the scene's own value.
+    /// The reference keeps the scene's own value (or the `--knob` one).
     #[arg(long, value_name = "NAME=V1,V2,...")]
     pub sweep: Vec<String>,
+    /// Set one of the scene's `knob` declarations for every row, the
+    /// reference included: NAME=VALUE, written as in the scene
+    /// (`--knob df="0.25 Hz"`); repeatable.
+    #[arg(long, value_name = "NAME=VALUE")]
+    pub knob: Vec<String>,
     /// Timed calls per configuration and kernel (medians are reported).
     #[arg(long, default_value_t = 200)]
     pub reps: usize,

@@ -61,6 +61,9 @@ pub struct Settings {
     pub reps: usize,
     /// A real array output used as the PSD weighting the mismatch.
     pub psd: Option<String>,
+    /// Scene knob values every configuration uses, the reference included
+    /// (each configuration's own knobs come after them).
+    pub knobs: Vec<(String, String)>,
 }
 
 /// Measurements of one configuration.
@@ -187,8 +190,9 @@ pub fn mismatch(a: &[C64], r: &[C64], psd: Option<&[f64]>) -> f64 {
 }
 
 /// Runs the sweep: compiles the scene under each configuration, binds it
-/// with `bind`, times both kernels and compares with the f64-exact run.
-/// `progress` is told (index, count, configuration) before each is measured.
+/// with `bind`, times both kernels and compares with the f64-exact run
+/// (at `settings.knobs`), which is the first row returned. `progress` is
+/// told (index, count, configuration) before each is measured.
 pub fn sweep(
     model: &Model,
     scene: Option<&str>,
@@ -196,7 +200,7 @@ pub fn sweep(
     bind: &dyn Fn(&mut Run) -> Result<(), Error>,
     progress: &mut dyn FnMut(usize, usize, &Config),
 ) -> Result<Vec<Row>, Error> {
-    let reference = Config::reference();
+    let reference = Config { knobs: settings.knobs.clone(), ..Config::reference() };
     let mut configs = vec![reference.clone()];
     configs.extend(settings.configs.iter().filter(|c| **c != reference).cloned());
     let mut rows: Vec<Row> = Vec::new();
@@ -334,11 +338,12 @@ fn opt(x: Option<f64>, f: impl Fn(f64) -> String) -> String {
     x.map_or_else(|| "-".to_string(), f)
 }
 
-/// The rows sorted by time as an aligned table (Markdown-compatible);
-/// `*` marks Pareto-optimal rows, `speed-up` is relative to f64-exact. A
-/// `knobs` column appears when the sweep sets scene knobs.
+/// The rows of [`sweep`] (the first is the reference) sorted by time as an
+/// aligned table (Markdown-compatible); `*` marks Pareto-optimal rows,
+/// `speed-up` is relative to the reference. A `knobs` column appears when
+/// the sweep sets scene knobs.
 pub fn table(rows: &[Row]) -> String {
-    let base = rows.iter().find(|r| r.config == Config::reference()).map(Row::time_us);
+    let base = rows.first().filter(|r| r.failure.is_none()).map(Row::time_us);
     let with_knobs = rows.iter().any(|r| !r.config.knobs.is_empty());
     let mut sorted: Vec<&Row> = rows.iter().collect();
     sorted.sort_by(|a, b| a.failure.is_some().cmp(&b.failure.is_some()).then(a.time_us().total_cmp(&b.time_us())));

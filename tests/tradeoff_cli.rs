@@ -113,3 +113,22 @@ fn a_sweep_of_a_knob_the_scene_lacks_is_refused_with_a_suggestion() {
     let (ok, _, stderr) = gwml(&["tradeoff", "examples/taylorf2_tradeoff.gw", "--reps", "2", "--sweep", "pn_order"]);
     assert!(!ok && stderr.contains("expected NAME=VALUE"), "{stderr}");
 }
+
+/// `--knob` sets a scene knob for every row, the reference included: the
+/// f64-exact row at df = 0.5 Hz is the reference (no error, 1.00×). A
+/// knob both set and swept is refused.
+#[test]
+fn tradeoff_knob_sets_every_row_and_the_reference() {
+    let (ok, stdout, stderr) = w1_tradeoff(&["--math", "exact,fast", "--knob", "df=0.5 Hz"]);
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("[1/2] f64 exact df=0.5 Hz") && stderr.contains("[2/2] f64 fast df=0.5 Hz"), "{stderr}");
+    let rows: Vec<&str> = stdout.lines().filter(|l| l.contains("| f64 |")).collect();
+    assert_eq!(rows.len(), 2, "{stdout}");
+    assert!(rows.iter().all(|r| r.contains("| df=0.5 Hz |")), "{stdout}");
+    let exact = rows.iter().find(|r| r.contains("| exact |")).unwrap();
+    assert!(exact.contains("| 1.00× | 0.0e0 | 0.0e0 | 0.0e0 |"), "{exact}");
+    let fast = rows.iter().find(|r| r.contains("| fast |")).unwrap();
+    assert!(!fast.contains("| 0.0e0 |") && !fast.contains("| - |"), "compared, on the same grid: {fast}");
+    let (ok, _, stderr) = w1_tradeoff(&["--knob", "df=0.5 Hz", "--sweep", "df=1 Hz"]);
+    assert!(!ok && stderr.contains("knob `df` is both set (--knob) and swept (--sweep)"), "{stderr}");
+}
