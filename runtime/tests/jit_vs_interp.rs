@@ -512,6 +512,43 @@ fn fast_math_divides_by_grid_arrays_through_reciprocal_tables() {
     }
 }
 
+/// In `fast` and `fastest` math an array dividing two values is inverted
+/// once per bin and the quotients are products; `exact` divides twice.
+#[test]
+fn fast_math_shares_one_reciprocal_between_divisions() {
+    let src = "scene c {
+        grid t = times(rate: 61 Hz, duration: 1 s)
+        input x: real[t] = 0.0
+        param a = 0.7
+        let u = 1.0 + a * t / 1 s
+        output p = x / u
+        output q = (x * x) / u
+    }";
+    let model = Model::from_source("c.gw", src).unwrap();
+    let x: Vec<f64> = (0..61).map(|k| (k * 37 % 61) as f64 / 30.0 - 1.0).collect();
+    let mut results = Vec::new();
+    for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
+        let scene = model.scene_with(None, Options { math: Some(math), ..Default::default() }).unwrap();
+        let ir = scene.ir().to_string();
+        assert_eq!(ir.matches(" div ").count(), if math == MathMode::Exact { 2 } else { 1 }, "{math:?}\n{ir}");
+        let mut run = scene.bind();
+        run.param("a", 0.7).unwrap().input_real("x", &x).unwrap();
+        let out = run.forward().unwrap();
+        let arrays = ["p", "q"].map(|n| match out.value(n) {
+            Ok(Value::RealArray(v)) => v.clone(),
+            _ => panic!("{n} is a real array"),
+        });
+        results.push(arrays);
+    }
+    for arrays in &results[1..] {
+        for (name, (got, want)) in ["p", "q"].iter().zip(arrays.iter().zip(&results[0])) {
+            for (k, (a, b)) in got.iter().zip(want).enumerate() {
+                assert!((a - b).abs() <= 4.0 * f64::EPSILON * b.abs(), "{name}[{k}]: {a} vs exact {b}");
+            }
+        }
+    }
+}
+
 /// Two outputs of the same array (merged by CSE) both hold it: they share
 /// one buffer (before, only the last one was written and the other read
 /// back as zeros).

@@ -17,7 +17,9 @@
 //!
 //! - in `fast` and `fastest` math, `x / a → x · (1/a)` for a grid-only
 //!   array `a` (a noise PSD), so the kernel multiplies by a table of
-//!   reciprocals instead of dividing.
+//!   reciprocals instead of dividing; and for an array that divides two or
+//!   more values (TaylorF2's `v⁵` in its phase's adjoint), one reciprocal
+//!   per bin serves them all.
 //!
 //! Then every real grid-only array that a non-grid-only instruction (or a
 //! result) uses, and that costs more than a load, becomes a table.
@@ -74,6 +76,14 @@ fn split_powers(func: &Function) -> Function {
         Op::Broadcast(s, _) if func.ty(s).elem == Elem::Real => Some(s),
         _ => None,
     };
+    // How many real quotients each value divides, and the reciprocals made.
+    let mut divisions = vec![0usize; func.insts.len()];
+    for inst in &func.insts {
+        if let (Op::Binary(BinOp::Div, _, y), Elem::Real) = (inst.op, inst.ty.elem) {
+            divisions[y.index()] += 1;
+        }
+    }
+    let mut reciprocals: std::collections::HashMap<Value, Value> = std::collections::HashMap::new();
     for inst in &func.insts {
         let mut rewritten = None;
         if let Op::PowConst(base, c) = inst.op {
@@ -128,14 +138,19 @@ fn split_powers(func: &Function) -> Function {
             // x / a = x · (1/a) for a grid-only real array a: a table of
             // reciprocals and a multiplication per bin instead of a
             // division (up to 1 ulp more error, so not in `exact`).
+            // Likewise for an array that divides two or more values: one
+            // division per bin instead of one per quotient.
             let array = match func.ty(y).shape {
                 Shape::Grid(g) if grid_only[y.index()] && !grid_only[x.index()] && scalar_of(y).is_none() => Some(g),
+                Shape::Grid(g) if !grid_only[y.index()] && divisions[y.index()] >= 2 => Some(g),
                 _ => None,
             };
             if let (Some(g), Elem::Real, Elem::Real) = (array, func.ty(y).elem, inst.ty.elem) {
-                let one = b.constant(num_complex::Complex64::new(1.0, 0.0), Ty::REAL);
-                let ones = b.emit(Op::Broadcast(one, g));
-                let reciprocal = b.div(ones, map[y.index()]);
+                let reciprocal = *reciprocals.entry(y).or_insert_with(|| {
+                    let one = b.constant(num_complex::Complex64::new(1.0, 0.0), Ty::REAL);
+                    let ones = b.emit(Op::Broadcast(one, g));
+                    b.div(ones, map[y.index()])
+                });
                 rewritten = Some(b.mul(map[x.index()], reciprocal));
             }
         }
