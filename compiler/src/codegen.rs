@@ -1375,11 +1375,13 @@ impl<'a> Gen<'a> {
         let mut lc = LoopCtx { epoch: self.sched.loops[l].0, index, vals: HashMap::new(), halves: HashMap::new(), known };
         for &m in members {
             let inst = self.func.insts[m];
-            if let Op::Reduce(r, a) = inst.op {
-                if r == Reduce::Sum && self.known_zero(known, a.index()) {
+            if !self.emitted(m, known) {
+                if matches!(inst.op, Op::Reduce(..)) {
                     self.sums_skipped.insert(m);
-                    continue;
                 }
+                continue;
+            }
+            if let Op::Reduce(r, a) = inst.op {
                 let (_, re_var, im_var) = *accs.iter().find(|(k, ..)| *k == m).expect("accumulator declared");
                 if self.vector == Some(types::F32) {
                     // f32x4 (real) → two f64x2 halves, into the two accumulators.
@@ -1404,11 +1406,6 @@ impl<'a> Gen<'a> {
                     let next = self.b.ins().fadd(acc, xi);
                     self.b.def_var(iv, next);
                 }
-                continue;
-            }
-            // With a condition known, only what is stored is emitted (and
-            // what that needs, on demand): the rest may be thrown away.
-            if known.is_some() && !self.sched.stored.contains_key(&m) {
                 continue;
             }
             if self.split(m) {
@@ -1678,6 +1675,17 @@ impl<'a> Gen<'a> {
         }
     }
 
+    /// Whether loop member `m` is emitted in a range where `known` holds
+    /// (the whole loop when `None`): with a condition known, a sum whose
+    /// terms it makes +0 is skipped, and of the rest only what is stored
+    /// (and what that needs, on demand): the rest may be thrown away.
+    fn emitted(&self, m: usize, known: Option<(usize, bool)>) -> bool {
+        match self.func.insts[m].op {
+            Op::Reduce(r, a) => !(r == Reduce::Sum && self.known_zero(known, a.index())),
+            _ => known.is_none() || self.sched.stored.contains_key(&m),
+        }
+    }
+
     /// Whether loop `l`'s body, with `known` resolving selects, is a few
     /// arithmetic operations (at most [`SMALL_BODY`], no function calls
     /// or inline transcendentals). Such a loop is bound by the latency of
@@ -1689,13 +1697,11 @@ impl<'a> Gen<'a> {
         let mut seen = HashSet::new();
         let mut cost = 0;
         let mut stack: Vec<usize> = Vec::new();
-        for &m in members {
-            match self.func.insts[m].op {
-                Op::Reduce(r, a) if !(r == Reduce::Sum && self.known_zero(known, a.index())) => stack.push(a.index()),
-                Op::Reduce(..) => {}
-                _ if known.is_none() || self.sched.stored.contains_key(&m) => stack.push(m),
-                _ => {}
-            }
+        for &m in members.iter().filter(|&&m| self.emitted(m, known)) {
+            stack.push(match self.func.insts[m].op {
+                Op::Reduce(_, a) => a.index(),
+                _ => m,
+            });
         }
         while let Some(i) = stack.pop() {
             let inst = self.func.insts[i];

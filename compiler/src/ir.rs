@@ -641,22 +641,22 @@ impl Function {
     /// Keeps the outputs `keep` accepts, and the gradients of those (a
     /// later prune drops what only the others needed).
     pub fn retain_outputs(&mut self, keep: impl Fn(&Output) -> bool) {
-        let kept: Vec<bool> = self.outputs.iter().map(&keep).collect();
-        let mut new_index = Vec::with_capacity(kept.len());
-        let mut n = 0;
-        for &k in &kept {
-            new_index.push(n);
-            n += usize::from(k);
-        }
-        let mut i = 0;
-        self.outputs.retain(|_| {
-            i += 1;
-            kept[i - 1]
-        });
-        self.grads.retain(|g| kept[g.output]);
-        self.grads.iter_mut().for_each(|g| g.output = new_index[g.output]);
-        self.input_grads.retain(|g| kept[g.output]);
-        self.input_grads.iter_mut().for_each(|g| g.output = new_index[g.output]);
+        // Each output's index among the kept ones, `None` if dropped.
+        let mut kept = 0;
+        let new_index: Vec<Option<usize>> = self
+            .outputs
+            .iter()
+            .map(|o| {
+                keep(o).then(|| {
+                    kept += 1;
+                    kept - 1
+                })
+            })
+            .collect();
+        let mut old = new_index.iter();
+        self.outputs.retain(|_| old.next().is_some_and(Option::is_some));
+        self.grads.retain_mut(|g| new_index[g.output].map(|n| g.output = n).is_some());
+        self.input_grads.retain_mut(|g| new_index[g.output].map(|n| g.output = n).is_some());
     }
 
     /// Type of `v`.

@@ -477,6 +477,41 @@ fn small_loops_run_two_copies_per_iteration() {
     }
 }
 
+/// Runs `src` (input `x`, param `a` = 0.7) in each math mode: checks the
+/// number of divisions left in its IR with `divisions_ok(mode, count)`, and
+/// that every real output in `names` (array or scalar) agrees with
+/// `exact`'s within 4 ulp.
+fn check_quotients_in_math_modes(src: &str, names: &[&str], divisions_ok: impl Fn(MathMode, usize) -> bool) {
+    let model = Model::from_source("c.gw", src).unwrap();
+    let x: Vec<f64> = (0..61).map(|k| (k * 37 % 61) as f64 / 30.0 - 1.0).collect();
+    let mut results: Vec<Vec<Vec<f64>>> = Vec::new();
+    for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
+        let scene = model.scene_with(None, Options { math: Some(math), ..Default::default() }).unwrap();
+        let ir = scene.ir().to_string();
+        assert!(divisions_ok(math, ir.matches(" div ").count()), "{math:?}\n{ir}");
+        let mut run = scene.bind();
+        run.param("a", 0.7).unwrap().input_real("x", &x).unwrap();
+        let out = run.forward().unwrap();
+        results.push(
+            names
+                .iter()
+                .map(|n| match out.value(n) {
+                    Ok(Value::RealArray(v)) => v.clone(),
+                    Ok(Value::Real(v)) => vec![*v],
+                    _ => panic!("{n} is real"),
+                })
+                .collect(),
+        );
+    }
+    for outputs in &results[1..] {
+        for (name, (got, want)) in names.iter().zip(outputs.iter().zip(&results[0])) {
+            for (k, (a, b)) in got.iter().zip(want).enumerate() {
+                assert!((a - b).abs() <= 4.0 * f64::EPSILON * b.abs(), "{name}[{k}]: {a} vs exact {b}");
+            }
+        }
+    }
+}
+
 /// In `fast` and `fastest` math a division by a grid-only array (a PSD) is
 /// a multiplication by a table of its reciprocals, within an ulp or two of
 /// the division `exact` keeps.
@@ -490,26 +525,7 @@ fn fast_math_divides_by_grid_arrays_through_reciprocal_tables() {
         output w = (a * x) / psd
         output s = sum(x * x / psd)
     }";
-    let model = Model::from_source("c.gw", src).unwrap();
-    let x: Vec<f64> = (0..61).map(|k| (k * 37 % 61) as f64 / 30.0 - 1.0).collect();
-    let mut results = Vec::new();
-    for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
-        let scene = model.scene_with(None, Options { math: Some(math), ..Default::default() }).unwrap();
-        let ir = scene.ir().to_string();
-        assert_eq!(ir.contains(" div "), math == MathMode::Exact, "{math:?}\n{ir}");
-        let mut run = scene.bind();
-        run.param("a", 0.7).unwrap().input_real("x", &x).unwrap();
-        let out = run.forward().unwrap();
-        let Ok(Value::RealArray(w)) = out.value("w") else { panic!("w is a real array") };
-        results.push((w.clone(), out.scalar("s").unwrap()));
-    }
-    let (w0, s0) = &results[0];
-    for (w, s) in &results[1..] {
-        for (k, (a, b)) in w.iter().zip(w0).enumerate() {
-            assert!((a - b).abs() <= 4.0 * f64::EPSILON * b.abs(), "w[{k}]: {a} vs exact {b}");
-        }
-        assert!((s - s0).abs() <= 4.0 * f64::EPSILON * s0.abs(), "s: {s} vs exact {s0}");
-    }
+    check_quotients_in_math_modes(src, &["w", "s"], |math, divisions| (divisions > 0) == (math == MathMode::Exact));
 }
 
 /// In `fast` and `fastest` math an array dividing two values is inverted
@@ -524,29 +540,7 @@ fn fast_math_shares_one_reciprocal_between_divisions() {
         output p = x / u
         output q = (x * x) / u
     }";
-    let model = Model::from_source("c.gw", src).unwrap();
-    let x: Vec<f64> = (0..61).map(|k| (k * 37 % 61) as f64 / 30.0 - 1.0).collect();
-    let mut results = Vec::new();
-    for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
-        let scene = model.scene_with(None, Options { math: Some(math), ..Default::default() }).unwrap();
-        let ir = scene.ir().to_string();
-        assert_eq!(ir.matches(" div ").count(), if math == MathMode::Exact { 2 } else { 1 }, "{math:?}\n{ir}");
-        let mut run = scene.bind();
-        run.param("a", 0.7).unwrap().input_real("x", &x).unwrap();
-        let out = run.forward().unwrap();
-        let arrays = ["p", "q"].map(|n| match out.value(n) {
-            Ok(Value::RealArray(v)) => v.clone(),
-            _ => panic!("{n} is a real array"),
-        });
-        results.push(arrays);
-    }
-    for arrays in &results[1..] {
-        for (name, (got, want)) in ["p", "q"].iter().zip(arrays.iter().zip(&results[0])) {
-            for (k, (a, b)) in got.iter().zip(want).enumerate() {
-                assert!((a - b).abs() <= 4.0 * f64::EPSILON * b.abs(), "{name}[{k}]: {a} vs exact {b}");
-            }
-        }
-    }
+    check_quotients_in_math_modes(src, &["p", "q"], |math, divisions| divisions == if math == MathMode::Exact { 2 } else { 1 });
 }
 
 /// Two outputs of the same array (merged by CSE) both hold it: they share
