@@ -83,6 +83,7 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("max_pool", "max_pool(x, window, stride: window): the largest value of each window of x [channels, n]"),
     ("avg_pool", "avg_pool(x, window, stride: window): the mean of each window of x [channels, n]"),
     ("global_avg_pool", "global_avg_pool(x): the mean over positions of x [channels, n], one value per channel"),
+    ("stack", "stack(a, b, ...): the channels of a, b, ... one after the other, one array [channels, n] (every argument has n positions)"),
     ("dropout", "dropout(x, rate): x with each value zeroed with probability rate and the rest scaled by 1/(1 - rate) while training; x itself otherwise"),
     ("index", "index(n): a grid of n points 0, 1, ..., n-1, e.g. classes (in `grid` declarations)"),
     ("frequencies", "frequencies(from:, to:, step:): a frequency grid (in `grid` declarations)"),

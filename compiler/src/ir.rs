@@ -226,6 +226,20 @@ pub struct Pool {
     pub stride: u32,
 }
 
+/// A block of rows of a `[rows × cols]` array: rows `from .. from + count`
+/// (one argument of `stack`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Rows {
+    /// Rows of the whole array.
+    pub rows: u32,
+    /// Columns (positions) of every row.
+    pub cols: u32,
+    /// First row of the block.
+    pub from: u32,
+    /// Rows in the block.
+    pub count: u32,
+}
+
 /// A dense-tensor operation on row-major real arrays: the layers of
 /// `learned` components. Like [`Dft`] it runs as a library call between
 /// fused loops (see `tensor`). The forward layers are `MatVec`, `Conv`,
@@ -260,13 +274,24 @@ pub enum TensorOp {
     Spread { rows: u32, cols: u32 },
     /// `(y[rows×cols]) → b[rows]`, the sum of each row: the transpose of `Spread`.
     SumRows { rows: u32, cols: u32 },
+    /// `(x[count×cols]) → y[rows×cols]`: `x` as the block [`Rows`] of `y`,
+    /// zeros elsewhere.
+    PlaceRows(Rows),
+    /// `(y[rows×cols]) → x[count×cols]`: the block [`Rows`] of `y`, the
+    /// transpose of `PlaceRows`.
+    TakeRows(Rows),
 }
 
 impl TensorOp {
     /// Number of operands (1 or 2).
     pub fn arity(&self) -> usize {
         match self {
-            TensorOp::PoolAvg(_) | TensorOp::PoolAvgBack(_) | TensorOp::Spread { .. } | TensorOp::SumRows { .. } => 1,
+            TensorOp::PoolAvg(_)
+            | TensorOp::PoolAvgBack(_)
+            | TensorOp::Spread { .. }
+            | TensorOp::SumRows { .. }
+            | TensorOp::PlaceRows(_)
+            | TensorOp::TakeRows(_) => 1,
             _ => 2,
         }
     }
@@ -287,6 +312,8 @@ impl TensorOp {
             TensorOp::PoolAvgBack(p) => [u(p.channels * p.len_out), 0],
             TensorOp::Spread { rows, .. } => [u(rows), 0],
             TensorOp::SumRows { rows, cols } => [u(rows * cols), 0],
+            TensorOp::PlaceRows(r) => [u(r.count * r.cols), 0],
+            TensorOp::TakeRows(r) => [u(r.rows * r.cols), 0],
         }
     }
 
@@ -304,6 +331,8 @@ impl TensorOp {
             TensorOp::PoolScatter(p) | TensorOp::PoolAvgBack(p) => u(p.channels * p.len_in),
             TensorOp::Spread { rows, cols } => u(rows * cols),
             TensorOp::SumRows { rows, .. } => u(rows),
+            TensorOp::PlaceRows(r) => u(r.rows * r.cols),
+            TensorOp::TakeRows(r) => u(r.count * r.cols),
         }
     }
 
@@ -322,6 +351,8 @@ impl TensorOp {
             TensorOp::PoolAvgBack(_) => "pool_avg_back",
             TensorOp::Spread { .. } => "spread",
             TensorOp::SumRows { .. } => "sum_rows",
+            TensorOp::PlaceRows(_) => "place_rows",
+            TensorOp::TakeRows(_) => "take_rows",
         }
     }
 }
@@ -892,6 +923,9 @@ impl Function {
                         format!("{}x{} -> {}x{}, window {}, stride {}", p.channels, p.len_in, p.channels, p.len_out, p.window, p.stride)
                     }
                     TensorOp::Spread { rows, cols } | TensorOp::SumRows { rows, cols } => format!("{rows}x{cols}"),
+                    TensorOp::PlaceRows(r) | TensorOp::TakeRows(r) => {
+                        format!("rows {}..{} of {}x{}", r.from, r.from + r.count, r.rows, r.cols)
+                    }
                 };
                 if t.arity() == 1 {
                     format!("{} %{} ({sizes})", t.name(), a.0)

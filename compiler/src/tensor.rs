@@ -220,6 +220,16 @@ pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
                 *o = sum(&a[r * u(cols)..(r + 1) * u(cols)]);
             }
         }
+        TensorOp::PlaceRows(r) => {
+            let (block, len) = (u(r.from * r.cols)..u((r.from + r.count) * r.cols), u(r.rows * r.cols));
+            out[..block.start].fill(T::zero());
+            out[block.clone()].copy_from_slice(&a[..block.len()]);
+            out[block.end..len].fill(T::zero());
+        }
+        TensorOp::TakeRows(r) => {
+            let block = u(r.from * r.cols)..u((r.from + r.count) * r.cols);
+            out[..block.len()].copy_from_slice(&a[block]);
+        }
     }
 }
 
@@ -660,6 +670,7 @@ entry_point!(gwml_tensor_f32, f32);
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ir::Rows;
 
     fn pseudo_random(n: usize, seed: u64) -> Vec<f64> {
         let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -773,6 +784,11 @@ mod tests {
         let b = pseudo_random(rows as usize, 14);
         let z = pseudo_random((rows * cols) as usize, 15);
         close(inner(&run(TensorOp::Spread { rows, cols }, &b, &[]), &z), inner(&b, &run(TensorOp::SumRows { rows, cols }, &z, &[])));
+        for from in 0..rows {
+            let r = Rows { rows, cols, from, count: rows - from };
+            let part = pseudo_random(((rows - from) * cols) as usize, 16);
+            close(inner(&run(TensorOp::PlaceRows(r), &part, &[]), &z), inner(&part, &run(TensorOp::TakeRows(r), &z, &[])));
+        }
     }
 
     #[test]

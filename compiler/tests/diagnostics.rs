@@ -382,6 +382,14 @@ fn conv1d_kernel_longer_than_its_input_and_bad_channels() {
 }
 
 #[test]
+fn stack_of_arrays_of_different_lengths() {
+    let err = fail(&learned_scene("  sum(stack(x, max_pool(x, 2)))"));
+    assert_reports(&err, "`stack` needs arrays of the same length, but this one has 8 positions");
+    assert_helps(&err, "pool or resample");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
 fn weight_with_an_unknown_initialiser_or_bad_dimension() {
     let err = fail(&learned_scene(
         "  weight a: [4] = glorrot\n  weight b: [2.5] = zeros\n  weight c: [3] = normal(seed: 1)\n  sum(a) + sum(b) + sum(c)",

@@ -173,6 +173,37 @@ fn pooling_layers_have_correct_gradients() {
     }
 }
 
+/// `stack` puts a [2, n] convolution, a time series and a one-channel
+/// convolution one above the other ([4, n]) for a second convolution.
+#[test]
+fn stacked_channels_have_correct_gradients() {
+    let src = "learned net(x) {\n    weight k1: [2, 1, 3] = he(seed: 1)\n    weight k2: [3, 4, 2] = glorot(seed: 2)\n    \
+               weight k3: [1, 1, 3] = normal(std: 0.5, seed: 3)\n    \
+               let h = tanh(conv1d(x, k1, padding: 1))\n    \
+               let y = conv1d(stack(h, tanh(x), conv1d(x * x, k3, padding: 1)), k2)\n    sum(y * y)\n}\n\
+               scene s {\n  grid t = times(rate: 17 Hz, duration: 1 s)\n  input x: real[t] = 0.0\n  output out = net(x)\n  grad out wrt net\n}\n";
+    let data = [("x", pseudo_random(17, 11))];
+    check_weight_gradients(src, &data, "out");
+    check_against_interpreter(src, &data);
+}
+
+/// `stack(a, b)` holds `a`'s channels, then `b`'s, exactly.
+#[test]
+fn stack_puts_its_arguments_one_after_the_other() {
+    let src = "scene s {\n  grid t = times(rate: 5 Hz, duration: 1 s)\n  input a: real[t] = 0.0\n  input b: real[t] = 0.0\n  \
+               output y = stack(a, stack(b, a * b))\n}\n";
+    let model = Model::from_source("stack.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    let mut run = scene.bind();
+    let (a, b) = (pseudo_random(5, 1), pseudo_random(5, 2));
+    run.input_real("a", &a).unwrap();
+    run.input_real("b", &b).unwrap();
+    let out = run.forward().unwrap();
+    let Value::RealArray(y) = out.value("y").unwrap() else { panic!("y is not a real array") };
+    let ab: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x * y).collect();
+    assert_eq!(y, &[a.clone(), b.clone(), ab].concat());
+}
+
 #[test]
 fn max_pooling_sends_the_gradient_of_a_tie_to_the_first_maximum() {
     // x = [1, 1, 0, 2]: windows of 2 tie in the first; d/dw of sum(max_pool(w * x))

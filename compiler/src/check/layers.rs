@@ -9,7 +9,7 @@
 use super::{Checker, Scope, Tv};
 use crate::builder::Builder;
 use crate::diagnostics::{did_you_mean, Diagnostic};
-use crate::ir::{self, Conv, Elem, GridId, InputRole, Op, Pool, Shape, TensorOp, Ty};
+use crate::ir::{self, Conv, Elem, GridId, InputRole, Op, Pool, Rows, Shape, TensorOp, Ty};
 use crate::source::{Span, Spanned};
 use crate::syntax::ast::{self, Expr, ExprKind, ModuleDef, WeightDecl};
 use crate::units::Dim;
@@ -18,7 +18,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};
 
 /// The layer builtins (their usage lines are in `BUILTINS`).
-pub const LAYERS: &[&str] = &["dense", "conv1d", "max_pool", "avg_pool", "global_avg_pool", "dropout"];
+pub const LAYERS: &[&str] = &["dense", "conv1d", "max_pool", "avg_pool", "global_avg_pool", "dropout", "stack"];
 
 /// Initialisers a `weight` may use.
 const INITIALISERS: &[&str] = &["zeros", "ones", "normal", "uniform", "glorot", "he"];
@@ -259,6 +259,7 @@ impl<'a> Checker<'a> {
             "dense" | "conv1d" => (2, 3),
             "max_pool" | "avg_pool" => (if opt("window").is_some() { 1 } else { 2 }, 2),
             "dropout" => (2, 2),
+            "stack" => (1, usize::MAX),
             _ => (1, 1),
         };
         if positional.len() < lo || positional.len() > hi {
@@ -268,7 +269,11 @@ impl<'a> Checker<'a> {
                     at,
                     format!(
                         "`{name}` takes {lo}{} positional arguments, but {} were given",
-                        if hi > lo { format!(" to {hi}") } else { String::new() },
+                        match hi {
+                            usize::MAX => " or more".to_string(),
+                            hi if hi > lo => format!(" to {hi}"),
+                            _ => String::new(),
+                        },
                         positional.len()
                     ),
                 )
@@ -291,6 +296,7 @@ impl<'a> Checker<'a> {
                 let conv = (opt("stride").unwrap_or(1), opt("padding").unwrap_or(0), opt("dilation").unwrap_or(1));
                 self.conv1d(b, x, vals[1], vals.get(2).copied(), conv)
             }
+            "stack" => self.stack(b, &vals),
             "dropout" => {
                 let rate_arg = window_arg.expect("dropout takes two arguments");
                 self.dropout(b, x, rate_arg)
@@ -414,6 +420,37 @@ impl<'a> Checker<'a> {
             None => y,
         };
         Some(Tv { v, dim: Dim::NONE })
+    }
+
+    /// `stack(a, b, ...)`: the channels of each argument one after the
+    /// other, `[Σ channels, n]`; every argument has `n` positions. Lowers to
+    /// one `PlaceRows` per argument, summed.
+    fn stack(&mut self, b: &mut Builder, parts: &[(Tv, Span)]) -> Option<Tv> {
+        let shapes: Vec<(u32, u32)> = parts.iter().map(|p| channels(b, p.0)).collect();
+        let cols = shapes[0].1;
+        if let Some((i, &(_, n))) = shapes.iter().enumerate().find(|(_, s)| s.1 != cols) {
+            self.error(
+                Diagnostic::error(parts[i].1, format!("`stack` needs arrays of the same length, but this one has {n} positions"))
+                    .with_label(format!("{n} positions"))
+                    .with_secondary(parts[0].1, format!("the first has {cols}"))
+                    .with_help("pool or resample the arguments to one length first"),
+            );
+            return None;
+        }
+        let rows: u32 = shapes.iter().map(|s| s.0).sum();
+        let grid = Self::tensor_grid(b, &[rows as usize, cols as usize]);
+        let mut from = 0;
+        let mut sum = None;
+        for (part, (count, _)) in parts.iter().zip(&shapes) {
+            let r = Rows { rows, cols, from, count: *count };
+            let placed = b.emit(Op::Tensor(TensorOp::PlaceRows(r), grid, part.0.v, part.0.v));
+            sum = Some(match sum {
+                Some(s) => b.add(s, placed),
+                None => placed,
+            });
+            from += count;
+        }
+        Some(Tv { v: sum.expect("at least one argument"), dim: Dim::NONE })
     }
 
     /// `dropout(x, rate)`: `x` times a mask input (see [`InputRole::DropoutMask`]),

@@ -354,5 +354,7 @@ fn tensor_rule(b: &mut Builder, t: TensorOp, x: Value, y: Value, g: Value) -> Ve
         T::PoolAvgBack(p) => vec![(x, op(b, T::PoolAvg(p), gx, g, g))],
         T::Spread { rows, cols } => vec![(x, op(b, T::SumRows { rows, cols }, gx, g, g))],
         T::SumRows { rows, cols } => vec![(x, op(b, T::Spread { rows, cols }, gx, g, g))],
+        T::PlaceRows(r) => vec![(x, op(b, T::TakeRows(r), gx, g, g))],
+        T::TakeRows(r) => vec![(x, op(b, T::PlaceRows(r), gx, g, g))],
     }
 }
