@@ -118,7 +118,7 @@ scene glitch {
     param tc: s = 0.9
     param phi = 0.0
     let h = select(class < 1.5, blip(t, t0, f0, q, 1.0, phi),
-            select(class < 2.5, koi_fish(t, t0, f0, q, 1.0, f_head: f_head, head: head, lead: lead),
+            select(class < 2.5, koi_fish(t, t0, f0, q, 1.0, f_head: f_head, head: head, lead: lead, phi: phi),
             select(class < 3.5, whistle(t, t0, f_min, f_max, half, 1.0, phi),
             select(class < 4.5, scratchy(t, t0, f0, rate, duration, 1.0, phi),
             tf2_strain_td(t, f, 30 Hz, mc, mass_ratio, 0.0, 0.0, 400 Mpc, tc, phi) / 1e-21))))
@@ -221,8 +221,9 @@ impl Default for GlitchOptions {
 /// f_min 300–900 Hz, f_max f_min + 200–600 Hz, half-width 0.1–0.3 s;
 /// Scratchy f0 30–400 Hz, 12–25 arches/s over 0.4–0.8 s; glitch centres
 /// 0.3–0.7 s; Chirp: TaylorF2 from 30 Hz, chirp mass 18–40 Msun, mass
-/// ratio 0.3–1, merger at 0.8–0.95 s, random phase (a detector projection
-/// up to amplitude, which the SNR normalisation removes).
+/// ratio 0.3–1, merger at 0.8–0.95 s (a detector projection up to
+/// amplitude, which the SNR normalisation removes). Every signal has a
+/// random phase (0–2π), so no class can be told by its phase.
 pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
     if !(o.snr.0 > 0.0 && o.snr.1 >= o.snr.0 && o.snr.1.is_finite()) {
         return Err(Error::Bind(format!("SNR range {}..{} must be positive and increasing", o.snr.0, o.snr.1)));
@@ -380,5 +381,20 @@ mod glitch_tests {
         let expected = 1.0 + knee * knee * (1.0 / 20.0 - 1.0 / 2000.0) / 2048.0;
         assert!((ratio / expected - 1.0).abs() < 0.03, "power ratio {ratio}, expected {expected}");
         assert!(glitches(&GlitchOptions { psd_knee: -1.0, ..Default::default() }).is_err());
+    }
+
+    /// Every glitch class and the chirp take the drawn phase: a phase of π
+    /// negates the signal (a class told apart by a fixed phase would teach
+    /// a classifier something no real glitch has).
+    #[test]
+    fn every_signal_takes_the_drawn_phase() {
+        let signals = GlitchSignals::new().unwrap();
+        let mut run = signals.bind();
+        for class in 1..GLITCH_CLASSES.len() {
+            let w0 = unit_signal(&mut run, class, &[("phi", 0.0)]).unwrap();
+            let w1 = unit_signal(&mut run, class, &[("phi", std::f64::consts::PI)]).unwrap();
+            let worst = w0.iter().zip(&w1).map(|(a, b)| (a + b).abs()).fold(0.0, f64::max);
+            assert!(worst < 1e-9, "{}: phase π differs from the negated signal by {worst}", GLITCH_CLASSES[class]);
+        }
     }
 }
