@@ -2,8 +2,8 @@
 """PyTorch CPU peer of benches/cnn.rs, in float64 and float32, on 1 and 2
 threads, for its two workloads: `burst`, the burst-detection CNN of
 examples/burst_cnn.gw trained and evaluated on sine-Gaussian bursts in
-white noise, and `glitch`, the glitch experiment's CNN of
-examples/glitch/cnn.gw on white noise with random labels.
+white noise, and `glitch`, the CNN of benches/glitch_cnn.gw (the shape
+issue #4 names) on white noise with random labels.
 
 Setup (a venv outside the repository):
 

@@ -5,8 +5,9 @@
 //!   (input 256 samples, conv 8×1×16 + ReLU, max pool 4, conv 16×8×8 +
 //!   ReLU, global max pool, dense 2×16, cross-entropy), in f64 (the
 //!   scene's own precision) and f32, on `gwml_runtime::synth::bursts` data;
-//! - `glitch`: the glitch experiment's CNN of `examples/glitch/cnn.gw`, the
-//!   shape issue #4 names (input 4,096 samples, four convolutions of 8–32
+//! - `glitch`: `benches/glitch_cnn.gw`, the glitch experiment's first CNN
+//!   (its `examples/glitch/cnn.gw` is now wider), the shape issue #4
+//!   names (input 4,096 samples, four convolutions of 8–32
 //!   channels with kernels of 16 and 8, ReLU, max pooling, a dense head of
 //!   6 classes), in f32 (the scene's own precision) and f64, on unit white
 //!   noise with random labels (the values do not change the work done).
@@ -142,7 +143,7 @@ fn main() {
     if wants("glitch") {
         let data = noise_data(EXAMPLES, 4096, 6, 1);
         for (tag, precision) in [("glitch_cnn_f32", Precision::F32), ("glitch_cnn_f64", Precision::F64)] {
-            bench(tag, &format!("{root}/examples/glitch/cnn.gw"), precision, 6, &data, reps);
+            bench(tag, &format!("{root}/benches/glitch_cnn.gw"), precision, 6, &data, reps);
         }
     }
     if let Some(peak) = peak_rss_mib() {
