@@ -39,6 +39,27 @@ impl fmt::Display for CompileError {
 
 impl std::error::Error for CompileError {}
 
+/// Why [`Program::pipeline`] could not prepare a scene.
+#[derive(Clone, Debug)]
+pub enum PipelineError {
+    /// No such scene, or an option names something the scene lacks.
+    Scene(String),
+    /// A knob override does not parse or check; its diagnostics point into
+    /// the scene or into the override's text.
+    Compile(CompileError),
+}
+
+impl fmt::Display for PipelineError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PipelineError::Scene(s) => f.write_str(s),
+            PipelineError::Compile(c) => c.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for PipelineError {}
+
 /// A parsed and checked program: its files, AST, and every scene lowered to IR.
 #[derive(Clone, Debug)]
 pub struct Program {
@@ -154,9 +175,10 @@ impl Program {
     }
 
     /// Checks and lowers scene `name` again with its knobs overridden by
-    /// `knobs` (name, value as source text). Errors are rendered, pointing
-    /// into the scene or into the override's text.
-    fn lower_with_knobs(&self, name: &str, knobs: &[(String, String)]) -> Result<Function, String> {
+    /// `knobs` (name, value as source text). Diagnostics point into the
+    /// scene or into the override's text, added to the sources as a file
+    /// named `--knob NAME`.
+    fn lower_with_knobs(&self, name: &str, knobs: &[(String, String)]) -> Result<Function, PipelineError> {
         let scene = self
             .ast
             .items
@@ -165,7 +187,7 @@ impl Program {
                 ast::Item::Scene(s) if s.name.node == name => Some(s),
                 _ => None,
             })
-            .ok_or_else(|| format!("no scene `{name}`"))?;
+            .ok_or_else(|| PipelineError::Scene(format!("no scene `{name}`")))?;
         let mut sources = self.sources.clone();
         let mut diags = Vec::new();
         let mut overrides = Vec::new();
@@ -179,7 +201,7 @@ impl Program {
         }
         let lowered =
             if diags.is_empty() { Checker::new(self.modules(&mut Vec::new())).lower_scene(scene, &overrides) } else { Err(diags) };
-        lowered.map_err(|diagnostics| CompileError { diagnostics, sources }.render(false))
+        lowered.map_err(|diagnostics| PipelineError::Compile(CompileError { diagnostics, sources }))
     }
 
     /// Names of the scenes, in source order.
@@ -210,8 +232,8 @@ impl Program {
     }
 
     /// Runs scene `name` through prune, adjoint and simplify.
-    pub fn pipeline(&self, name: Option<&str>, opts: Options) -> Result<ScenePipeline, String> {
-        let mut checked = self.scene_ir(name)?.clone();
+    pub fn pipeline(&self, name: Option<&str>, opts: Options) -> Result<ScenePipeline, PipelineError> {
+        let mut checked = self.scene_ir(name).map_err(PipelineError::Scene)?.clone();
         if !opts.knobs.is_empty() {
             checked = self.lower_with_knobs(&checked.name, &opts.knobs)?;
         }
@@ -223,7 +245,7 @@ impl Program {
         }
         if let Some(keep) = &opts.outputs {
             if let Some(unknown) = keep.iter().find(|k| !checked.outputs.iter().any(|o| &o.name == *k)) {
-                return Err(format!("scene `{}` has no output `{unknown}`", checked.name));
+                return Err(PipelineError::Scene(format!("scene `{}` has no output `{unknown}`", checked.name)));
             }
             checked.retain_outputs(|o| keep.contains(&o.name));
         }

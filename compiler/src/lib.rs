@@ -20,5 +20,5 @@ pub mod syntax;
 pub mod tensor;
 pub mod units;
 
-pub use driver::{CompileError, Options, Program, ScenePipeline, Stats};
+pub use driver::{CompileError, Options, PipelineError, Program, ScenePipeline, Stats};
 pub mod codegen;

@@ -6,7 +6,7 @@
 //! Regenerate the snapshots with `INSTA_UPDATE=always cargo test -p gwml-compiler --test knobs`.
 
 use gwml_compiler::interp;
-use gwml_compiler::{Options, Program};
+use gwml_compiler::{Options, PipelineError, Program};
 
 const SCENE: &str = "module scaled(x, k = 1.0) {
   if k >= 2.0 { 2.0 * x } else { x }
@@ -73,7 +73,9 @@ fn override_error(knobs: &[(&str, &str)]) -> String {
     let program = Program::parse("knobs.gw", SCENE).unwrap();
     match program.pipeline(Some("s"), with_knobs(knobs)) {
         Ok(_) => panic!("override {knobs:?} was accepted"),
-        Err(e) => e,
+        // Diagnostics with their sources, which the CLI renders in colour.
+        Err(PipelineError::Compile(e)) => e.render(false),
+        Err(e) => panic!("override {knobs:?}: not a diagnostic: {e}"),
     }
 }
 

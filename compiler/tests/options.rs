@@ -38,6 +38,6 @@ fn a_subset_of_outputs_keeps_their_values_and_gradients_only() {
 #[test]
 fn an_unknown_output_is_an_error() {
     let program = Program::parse("s.gw", SCENE).unwrap();
-    let e = program.pipeline(None, Options { outputs: Some(vec!["secnd".into()]), ..Default::default() }).err().unwrap();
+    let e = program.pipeline(None, Options { outputs: Some(vec!["secnd".into()]), ..Default::default() }).err().unwrap().to_string();
     assert!(e.contains("has no output `secnd`"), "{e}");
 }

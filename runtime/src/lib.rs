@@ -25,7 +25,7 @@ pub mod train;
 use gwml_compiler::codegen::{self, BufferKind, Kernel};
 use gwml_compiler::diagnostics::did_you_mean;
 use gwml_compiler::ir::{Elem, Function, Precision, Shape};
-use gwml_compiler::{CompileError, Options, Program, ScenePipeline};
+use gwml_compiler::{CompileError, Options, PipelineError, Program, ScenePipeline};
 use num_complex::Complex64 as C64;
 use std::fmt;
 use std::path::Path;
@@ -115,7 +115,10 @@ impl Model {
 
     /// JIT-compiles scene `name` with `opts`.
     pub fn scene_with(&self, name: Option<&str>, opts: Options) -> Result<Scene, Error> {
-        let pipeline = self.program.pipeline(name, opts).map_err(Error::Scene)?;
+        let pipeline = self.program.pipeline(name, opts).map_err(|e| match e {
+            PipelineError::Scene(s) => Error::Scene(s),
+            PipelineError::Compile(c) => Error::Compile(c),
+        })?;
         Scene::new(pipeline)
     }
 }
