@@ -132,8 +132,8 @@ scalar!(f32, sgemm, SCRATCH_F32, no_vector_pool);
 /// are a caller bug and panic on indexing rather than read out of bounds.
 pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
     let u = |x: u32| x as usize;
-    // Ops that accumulate into `out` start from zeros; the others write
-    // every element.
+    // Ops that accumulate into `out` or write part of it start from zeros;
+    // the others write every element.
     if matches!(
         op,
         TensorOp::MatTVec { .. }
@@ -142,6 +142,7 @@ pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
             | TensorOp::PoolScatter(_)
             | TensorOp::PoolAvg(_)
             | TensorOp::PoolAvgBack(_)
+            | TensorOp::PlaceRows(_)
     ) {
         out.fill(T::zero());
     }
@@ -221,10 +222,9 @@ pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
             }
         }
         TensorOp::PlaceRows(r) => {
-            let (block, len) = (u(r.from * r.cols)..u((r.from + r.count) * r.cols), u(r.rows * r.cols));
-            out[..block.start].fill(T::zero());
-            out[block.clone()].copy_from_slice(&a[..block.len()]);
-            out[block.end..len].fill(T::zero());
+            let block = u(r.from * r.cols)..u((r.from + r.count) * r.cols);
+            let n = block.len();
+            out[block].copy_from_slice(&a[..n]);
         }
         TensorOp::TakeRows(r) => {
             let block = u(r.from * r.cols)..u((r.from + r.count) * r.cols);
