@@ -453,7 +453,10 @@ pub fn fit_command(a: GeneratorFitArgs) -> Result<(), String> {
         Some(path) => read_examples(path, class)?,
         None => {
             let (lo, hi) = parse_range(&a.snr)?;
-            let ds = glitches(&GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), psd_knee: 0.0, class: Some(class) }).map_err(render)?;
+            // Every family at the stated SNR, Koi Fish included.
+            let options =
+                GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), koi_fish_loudness: 1.0, class: Some(class), ..Default::default() };
+            let ds = glitches(&options).map_err(render)?;
             let x = &ds.arrays["x"];
             (0..x.rows()).map(|i| x.row(i).to_vec()).collect()
         }

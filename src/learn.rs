@@ -209,9 +209,15 @@ pub fn data(a: DataArgs) -> Result<(), String> {
         }
         DataKind::Glitch => {
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("8..30"))?;
-            let ds =
-                glitches(&GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), psd_knee: a.psd_knee, class: a.class.map(|c| c.label()) })
-                    .map_err(render)?;
+            let ds = glitches(&GlitchOptions {
+                n: a.n,
+                seed: a.seed,
+                snr: (lo, hi),
+                koi_fish_loudness: a.koi_fish_loudness,
+                psd_knee: a.psd_knee,
+                class: a.class.map(|c| c.label()),
+            })
+            .map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;
             let counts: Vec<String> = GLITCH_CLASSES
                 .iter()

@@ -338,7 +338,7 @@ pub enum DataKind {
     Bursts,
     /// Whitened 1 s segments at 4096 Hz of six classes (label 0 None, 1 Blip,
     /// 2 Koi Fish, 3 Whistle, 4 Scratchy, 5 Chirp) in aLIGO noise, SNR 8-30
-    /// by default; `x` is n × 4096.
+    /// by default (Koi Fish 24-90); `x` is n × 4096.
     Glitch,
 }
 
@@ -353,9 +353,15 @@ pub struct DataArgs {
     /// Seed (use different seeds for training, validation and test sets).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Range of the optimal signal-to-noise ratio [default: 6..15 for bursts, 8..30 for glitch].
+    /// Range of the optimal signal-to-noise ratio [default: 6..15 for bursts,
+    /// 8..30 for glitch, where Koi Fish are drawn louder: see --koi-fish-loudness].
     #[arg(long)]
     pub snr: Option<String>,
+    /// glitch only: Koi Fish are drawn this many times louder than the --snr
+    /// range (Gravity Spy finds them 6-8 times louder than Blips); 1 draws
+    /// every class from the same range.
+    #[arg(long, value_name = "FACTOR", default_value_t = gwml::runtime::synth::KOI_FISH_LOUDNESS)]
+    pub koi_fish_loudness: f64,
     /// glitch only: shift the noise's PSD away from the modelled one by a
     /// factor 1 + (KNEE/f)² over 20 Hz–2 kHz (excess low-frequency noise),
     /// for generalisation tests [default: 0, the modelled PSD].
@@ -413,7 +419,7 @@ pub struct GeneratorFitArgs {
     /// Example glitches: an .npz with `x` (rows of 4096 whitened samples at
     /// 4096 Hz; with a `label` array, only the family's rows are used) or an
     /// .npy of such rows [default: draw --n examples of the family as
-    /// `gwml data glitch --class FAMILY` does].
+    /// `gwml data glitch --class FAMILY --koi-fish-loudness 1` does].
     #[arg(long, value_name = "PATH")]
     pub examples: Option<PathBuf>,
     /// Examples to draw when --examples is not given.
@@ -422,7 +428,7 @@ pub struct GeneratorFitArgs {
     /// Seed of the drawn examples.
     #[arg(long, default_value_t = 11)]
     pub seed: u64,
-    /// SNR range of the drawn examples.
+    /// SNR range of the drawn examples (Koi Fish included).
     #[arg(long, default_value = "15..40")]
     pub snr: String,
     /// Where to write the generator.

@@ -194,8 +194,13 @@ pub struct GlitchOptions {
     /// Seed: the same seed gives the same dataset; use different seeds for
     /// training, validation and test sets.
     pub seed: u64,
-    /// Optimal SNR range of every signal (with respect to the modelled PSD).
+    /// Optimal SNR range of every signal (with respect to the modelled PSD)
+    /// but Koi Fish, which are drawn `koi_fish_loudness` times louder.
     pub snr: (f64, f64),
+    /// How much louder Koi Fish are drawn than the other classes: their SNR
+    /// is `snr` times this ([`KOI_FISH_LOUDNESS`] by default; 1 draws every
+    /// class from the same range).
+    pub koi_fish_loudness: f64,
     /// A shifted PSD for generalisation tests: when positive, the noise's
     /// true PSD is the modelled aLIGO PSD times `1 + (knee / f)²` over the
     /// whitening band (20 Hz to 2 kHz), excess low-frequency noise the
@@ -210,9 +215,17 @@ pub struct GlitchOptions {
 
 impl Default for GlitchOptions {
     fn default() -> Self {
-        GlitchOptions { n: 1000, seed: 1, snr: (8.0, 30.0), psd_knee: 0.0, class: None }
+        GlitchOptions { n: 1000, seed: 1, snr: (8.0, 30.0), koi_fish_loudness: KOI_FISH_LOUDNESS, psd_knee: 0.0, class: None }
     }
 }
+
+/// The factor by which Koi Fish are drawn louder than the other classes.
+/// Gravity Spy describes Koi Fish as loud Blips: the O3a medians of their
+/// SNR are 140–195 against ~23 for Blips (Zevin et al. 2017, Class. Quantum
+/// Grav. 34 064003; medians from the public O3a metadata), 6–8 times louder.
+/// A factor of 3 (SNR 24–90 for the default 8–30) keeps part of the Koi
+/// Fish as quiet as the loudest Blips, so loudness is a cue and not a label.
+pub const KOI_FISH_LOUDNESS: f64 = 3.0;
 
 /// Draws whitened segments `x` (`n × 4096`) with labels `label` (`n`,
 /// indices into [`GLITCH_CLASSES`]). Parameter ranges, per class:
@@ -223,10 +236,14 @@ impl Default for GlitchOptions {
 /// 0.3–0.7 s; Chirp: TaylorF2 from 30 Hz, chirp mass 18–40 Msun, mass
 /// ratio 0.3–1, merger at 0.8–0.95 s (a detector projection up to
 /// amplitude, which the SNR normalisation removes). Every signal has a
-/// random phase (0–2π), so no class can be told by its phase.
+/// random phase (0–2π), so no class can be told by its phase. The SNR is
+/// drawn uniformly from `o.snr`, times `o.koi_fish_loudness` for Koi Fish.
 pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
     if !(o.snr.0 > 0.0 && o.snr.1 >= o.snr.0 && o.snr.1.is_finite()) {
         return Err(Error::Bind(format!("SNR range {}..{} must be positive and increasing", o.snr.0, o.snr.1)));
+    }
+    if !(o.koi_fish_loudness > 0.0 && o.koi_fish_loudness.is_finite()) {
+        return Err(Error::Bind(format!("the Koi Fish loudness {} must be positive and finite", o.koi_fish_loudness)));
     }
     if o.psd_knee.is_nan() || o.psd_knee < 0.0 || o.psd_knee.is_infinite() {
         return Err(Error::Bind(format!("the PSD knee {} Hz must be zero or positive", o.psd_knee)));
@@ -282,7 +299,7 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
                 ("tc", u(0.8, 0.95)),
                 ("phi", u(0.0, std::f64::consts::TAU)),
             ];
-            let snr = u(o.snr.0, o.snr.1);
+            let snr = u(o.snr.0, o.snr.1) * if class == 2 { o.koi_fish_loudness } else { 1.0 };
             // `snr * v / norm` rather than a unit signal: the same rounding
             // as the datasets `results/glitch` was computed from.
             let (w, norm) = signal_and_norm(&mut run, class, &settings)?;
@@ -339,7 +356,7 @@ mod glitch_tests {
 
     #[test]
     fn glitch_data_is_reproducible_covers_every_class_and_has_the_drawn_snr() {
-        let o = GlitchOptions { n: 120, seed: 3, snr: (60.0, 60.0), psd_knee: 0.0, class: None };
+        let o = GlitchOptions { n: 120, seed: 3, snr: (60.0, 60.0), ..Default::default() };
         let a = glitches(&o).unwrap();
         assert_eq!(a, glitches(&o).unwrap());
         let labels = &a.arrays["label"].data;
@@ -347,9 +364,10 @@ mod glitch_tests {
             let k = labels.iter().filter(|l| **l == c as f64).count();
             assert!(k >= 8, "class {name} drawn {k} times of 120");
         }
-        // Unit-variance noise plus a signal of optimal SNR 60: the row's
-        // power exceeds the noise's 4096 by 3600 (the noise's own spread is
-        // ±90 per row, the cross term ±120).
+        // Unit-variance noise plus a signal of optimal SNR 60 (180 for a
+        // Koi Fish, drawn three times louder): the row's power exceeds the
+        // noise's 4096 by 3600 (32,400) (the noise's own spread is ±90 per
+        // row, the cross term ±120 (±360)).
         let x = &a.arrays["x"];
         for (i, label) in labels.iter().enumerate() {
             let p: f64 = x.row(i).iter().map(|v| v * v).sum();
@@ -357,7 +375,8 @@ mod glitch_tests {
             if *label == 0.0 {
                 assert!(excess.abs() < 450.0, "noise row {i}: excess power {excess}");
             } else {
-                assert!((excess - 3600.0).abs() < 600.0, "class {label} row {i}: excess {excess}");
+                let snr = if *label == 2.0 { 180.0 } else { 60.0 };
+                assert!((excess - snr * snr).abs() < 600.0, "class {label} row {i}: excess {excess}");
             }
         }
     }
@@ -370,8 +389,8 @@ mod glitch_tests {
         // 1 + (1/2048 Hz) ∫_{20}^{2000} (knee/f)² df
         //   = 1 + knee² (1/20 - 1/2000) / 2048.
         let knee = 60.0;
-        let plain = glitches(&GlitchOptions { n: 200, seed: 9, snr: (8.0, 30.0), psd_knee: 0.0, class: None }).unwrap();
-        let shifted = glitches(&GlitchOptions { n: 200, seed: 9, snr: (8.0, 30.0), psd_knee: knee, class: None }).unwrap();
+        let plain = glitches(&GlitchOptions { n: 200, seed: 9, ..Default::default() }).unwrap();
+        let shifted = glitches(&GlitchOptions { n: 200, seed: 9, psd_knee: knee, ..Default::default() }).unwrap();
         let labels = &plain.arrays["label"].data;
         assert_eq!(labels, &shifted.arrays["label"].data);
         let power = |d: &Dataset| -> f64 {
@@ -381,6 +400,27 @@ mod glitch_tests {
         let expected = 1.0 + knee * knee * (1.0 / 20.0 - 1.0 / 2000.0) / 2048.0;
         assert!((ratio / expected - 1.0).abs() < 0.03, "power ratio {ratio}, expected {expected}");
         assert!(glitches(&GlitchOptions { psd_knee: -1.0, ..Default::default() }).is_err());
+    }
+
+    /// With a loudness of 1 every class, Koi Fish included, is drawn from
+    /// the same SNR range, and the other classes' rows do not change.
+    #[test]
+    fn koi_fish_loudness_scales_only_koi_fish() {
+        let loud = glitches(&GlitchOptions { n: 60, seed: 4, snr: (60.0, 60.0), ..Default::default() }).unwrap();
+        let even = glitches(&GlitchOptions { n: 60, seed: 4, snr: (60.0, 60.0), koi_fish_loudness: 1.0, ..Default::default() }).unwrap();
+        let labels = &loud.arrays["label"].data;
+        assert_eq!(labels, &even.arrays["label"].data);
+        assert!(labels.iter().filter(|l| **l == 2.0).count() >= 3);
+        for (i, label) in labels.iter().enumerate() {
+            let (a, b) = (loud.arrays["x"].row(i), even.arrays["x"].row(i));
+            let excess = b.iter().map(|v| v * v).sum::<f64>() - 4096.0;
+            let expected = if *label == 0.0 { 0.0 } else { 3600.0 };
+            assert!((excess - expected).abs() < 600.0, "class {label} row {i}: excess {excess} at loudness 1");
+            assert_eq!(a == b, *label != 2.0, "row {i} of class {label}");
+        }
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(glitches(&GlitchOptions { koi_fish_loudness: bad, ..Default::default() }).is_err(), "loudness {bad}");
+        }
     }
 
     /// Every glitch class and the chirp take the drawn phase: a phase of π

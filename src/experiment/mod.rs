@@ -169,7 +169,7 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
     let largest = *plan.sizes.last().expect("at least one size");
 
     eprintln!("drawing data: {largest} training, {} validation, 3 × {} test examples", plan.val, plan.test);
-    let draw = |n, seed, snr, psd_knee| glitches(&GlitchOptions { n, seed, snr, psd_knee, class: None }).map_err(render);
+    let draw = |n, seed, snr, psd_knee| glitches(&GlitchOptions { n, seed, snr, psd_knee, ..Default::default() }).map_err(render);
     let train = draw(largest, TRAIN_SEED, SNR, 0.0)?;
     let val = draw(plan.val, VAL_SEED, SNR, 0.0)?;
     let tests = TestSets {
