@@ -252,15 +252,18 @@ fn run_learner(l: &Learner, plan: &Plan, train: &Dataset, val: &Dataset, tests: 
     );
     bar.set_message(format!("{} on {n}", l.title));
     let done_epochs = std::cell::Cell::new(0u64);
-    let reports = trainer
+    // No validation between epochs: nothing stops early, and the
+    // validation accuracy is reported once, after the last epoch.
+    trainer
         .fit(
             train,
-            Some(val),
+            None,
             |done, _| bar.set_position(done_epochs.get() * steps_per_epoch + done as u64),
             |_| done_epochs.set(done_epochs.get() + 1),
         )
         .map_err(render)?;
     bar.finish_and_clear();
+    let val_confusion = Confusion::new(GLITCH_CLASSES.len(), &labels(val)?, &trainer.predict_classes(val).map_err(render)?)?;
     let params: Vec<String> = scene
         .ir()
         .params
@@ -274,7 +277,7 @@ fn run_learner(l: &Learner, plan: &Plan, train: &Dataset, val: &Dataset, tests: 
         confusions.push(Confusion::new(GLITCH_CLASSES.len(), &labels(set)?, &predicted)?);
     }
     let seconds = t0.elapsed().as_secs_f64();
-    let val_acc = reports.last().and_then(|r| r.val).and_then(|m| m.accuracy).map_or("–".into(), percent);
+    let val_acc = percent(val_confusion.accuracy());
     eprintln!(
         "{} on {n} examples, {epochs} epochs: validation accuracy {val_acc} %, test macro P/R {} ({seconds:.1} s)",
         l.title,
