@@ -7,7 +7,7 @@ use crate::{DataArgs, DataKind, PredictArgs, ScheduleArg, TrainArgs, TrainOptimi
 use gwml::runtime::checkpoint;
 use gwml::runtime::dataset::{self, Array, Dataset};
 use gwml::runtime::optim::{Method, OptimConfig, Schedule};
-use gwml::runtime::synth::{bursts, glitches, BurstOptions, GlitchOptions, GLITCH_CLASSES};
+use gwml::runtime::synth::{bursts, glitches, BurstOptions, GlitchOptions, GLITCH_CLASSES, KOI_FISH_LOUDNESS};
 use gwml::runtime::train::{EpochReport, TrainOptions, Trainer};
 use gwml::{Model, Value};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -196,6 +196,9 @@ pub fn data(a: DataArgs) -> Result<(), String> {
             if a.class.is_some() {
                 return Err("error: --class applies to glitch data only".into());
             }
+            if a.koi_fish_loudness.is_some() {
+                return Err("error: --koi-fish-loudness applies to glitch data only".into());
+            }
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("6..15"))?;
             let ds = bursts(&BurstOptions { n: a.n, seed: a.seed, snr: (lo, hi), ..Default::default() }).map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;
@@ -213,7 +216,7 @@ pub fn data(a: DataArgs) -> Result<(), String> {
                 n: a.n,
                 seed: a.seed,
                 snr: (lo, hi),
-                koi_fish_loudness: a.koi_fish_loudness,
+                koi_fish_loudness: a.koi_fish_loudness.unwrap_or(KOI_FISH_LOUDNESS),
                 psd_knee: a.psd_knee,
                 class: a.class.map(|c| c.label()),
             })

@@ -359,9 +359,9 @@ pub struct DataArgs {
     pub snr: Option<String>,
     /// glitch only: Koi Fish are drawn this many times louder than the --snr
     /// range (Gravity Spy finds them 6-8 times louder than Blips); 1 draws
-    /// every class from the same range.
-    #[arg(long, value_name = "FACTOR", default_value_t = gwml::runtime::synth::KOI_FISH_LOUDNESS)]
-    pub koi_fish_loudness: f64,
+    /// every class from the same range [default: 3].
+    #[arg(long, value_name = "FACTOR")]
+    pub koi_fish_loudness: Option<f64>,
     /// glitch only: shift the noise's PSD away from the modelled one by a
     /// factor 1 + (KNEE/f)² over 20 Hz–2 kHz (excess low-frequency noise),
     /// for generalisation tests [default: 0, the modelled PSD].

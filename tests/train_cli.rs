@@ -97,4 +97,9 @@ fn glitch_data_has_six_classes_of_whitened_segments() {
     assert!(!ok && err.contains("glitch data only"), "{err}");
     let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--psd-knee=-5", "--out", "/tmp/never.npz"]);
     assert!(!ok && err.contains("knee"), "{err}");
+    // So is the Koi Fish loudness, which must be positive.
+    let (ok, _, err) = gwml(&["data", "bursts", "--n", "2", "--koi-fish-loudness", "2", "--out", "/tmp/never.npz"]);
+    assert!(!ok && err.contains("glitch data only"), "{err}");
+    let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--koi-fish-loudness", "0", "--out", "/tmp/never.npz"]);
+    assert!(!ok && err.contains("Koi Fish loudness"), "{err}");
 }
