@@ -387,21 +387,23 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
     write_file(&o.out, "learning_curve.csv", &csv_table(&curve_header, &curve))?;
 
     // Plots: learning curves and the confusion matrices at the reference size.
-    let mut series: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
+    let mut curves: Vec<(&str, Vec<(f64, f64, f64)>)> = Vec::new();
     for l in &LEARNERS {
-        let runs: Vec<&Scored> = scored.iter().filter(|s| s.key == l.key).collect();
-        let xs: Vec<f64> = runs.iter().map(|s| (s.train_examples as f64).log10()).collect();
-        let recall: Vec<f64> = runs.iter().map(|s| 100.0 * s.confusions[0].macro_scores(&GLITCH_LIKE).1).collect();
-        let precision: Vec<f64> = runs.iter().map(|s| 100.0 * s.confusions[0].macro_scores(&GLITCH_LIKE).0).collect();
-        series.push((format!("{} recall", l.title), xs.clone(), recall));
-        series.push((format!("{} precision", l.title), xs, precision));
+        let points = scored
+            .iter()
+            .filter(|s| s.key == l.key)
+            .map(|s| {
+                let (precision, recall) = s.confusions[0].macro_scores(&GLITCH_LIKE);
+                (s.train_examples as f64, 100.0 * precision, 100.0 * recall)
+            })
+            .collect();
+        curves.push((l.title, points));
     }
-    let refs: Vec<(&str, &[f64], &[f64])> = series.iter().map(|(n, x, y)| (n.as_str(), x.as_slice(), y.as_slice())).collect();
-    plot::lines_plot(
+    let refs: Vec<plot::Curve> = curves.iter().map(|(name, points)| (*name, points.as_slice())).collect();
+    plot::learning_curve_plot(
         &o.out.join("learning_curve.png"),
         "glitch classification: learning curves",
-        "log10(training examples)",
-        "macro %",
+        "macro % (glitch classes)",
         &refs,
     )?;
     let names: Vec<&str> = GLITCH_CLASSES.to_vec();
