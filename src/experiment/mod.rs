@@ -387,18 +387,17 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
     write_file(&o.out, "learning_curve.csv", &csv_table(&curve_header, &curve))?;
 
     // Plots: learning curves and the confusion matrices at the reference size.
-    let mut curves: Vec<(&str, Vec<(f64, f64, f64)>)> = Vec::new();
-    for l in &LEARNERS {
-        let points = scored
+    let points = |key: &str| -> Vec<(f64, f64, f64)> {
+        scored
             .iter()
-            .filter(|s| s.key == l.key)
+            .filter(|s| s.key == key)
             .map(|s| {
                 let (precision, recall) = s.confusions[0].macro_scores(&GLITCH_LIKE);
                 (s.train_examples as f64, 100.0 * precision, 100.0 * recall)
             })
-            .collect();
-        curves.push((l.title, points));
-    }
+            .collect()
+    };
+    let curves: Vec<_> = LEARNERS.iter().map(|l| (l.title, points(l.key))).collect();
     let refs: Vec<plot::Curve> = curves.iter().map(|(name, points)| (*name, points.as_slice())).collect();
     plot::learning_curve_plot(
         &o.out.join("learning_curve.png"),
