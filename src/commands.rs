@@ -66,6 +66,10 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
         Some(Emit::Ir) => print!("{}", scene.pipeline.pruned),
         Some(Emit::Adjoint) => print!("{}", scene.pipeline.optimized),
         Some(Emit::Clif) => print!("{}", grad_kernel.unwrap_or(scene.forward_kernel()).clif),
+        Some(Emit::Asm) => {
+            let ir = if has_grads { &scene.pipeline.optimized } else { scene.forward_ir() };
+            print!("{}", gwml::compiler::codegen::disassemble(ir).map_err(|e| render(Error::Codegen(e)))?)
+        }
         Some(Emit::Ast) | None => {
             let f = scene.ir();
             println!(

@@ -65,6 +65,8 @@ pub enum Emit {
     Adjoint,
     /// Cranelift IR of the kernel (the gradient kernel if the scene asks for gradients).
     Clif,
+    /// Machine code of that kernel after register allocation (Cranelift's listing: loops, spills to the stack, vector instructions).
+    Asm,
 }
 
 /// Floating-point precision of generated code.

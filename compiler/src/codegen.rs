@@ -479,6 +479,19 @@ fn libm_symbols() -> Vec<(&'static str, *const u8)> {
 
 /// Compiles `func` (optimised IR) to a native kernel.
 pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
+    compile_with(func, false).map(|(kernel, _)| kernel)
+}
+
+/// The machine code `func` compiles to, as Cranelift prints it (its VCode:
+/// one block per label, stack slots as `<offset:1>+N(%rsp)`), for `--emit
+/// asm`. Compiles the kernel again with the disassembler on, which
+/// [`compile`] leaves off because it slows compilation.
+pub fn disassemble(func: &Function) -> Result<String, CodegenError> {
+    compile_with(func, true).map(|(_, asm)| asm.unwrap_or_default())
+}
+
+/// [`compile`], also returning the disassembly when `disasm` is set.
+fn compile_with(func: &Function, disasm: bool) -> Result<(Kernel, Option<String>), CodegenError> {
     let err = |e: &dyn fmt::Display| CodegenError(e.to_string());
     if let Some(problem) = f32_range_problem(func) {
         return Err(CodegenError(problem));
@@ -570,13 +583,15 @@ pub fn compile(func: &Function) -> Result<Kernel, CodegenError> {
     layout.sums_skipped = sums_skipped;
     let clif = ctx.func.display().to_string();
     let clif_insts = ctx.func.dfg.num_insts();
+    ctx.set_disasm(disasm);
     module.define_function(id, &mut ctx).map_err(|e| CodegenError(format!("{e:?}")))?;
+    let asm = ctx.compiled_code().and_then(|c| c.vcode.clone());
     module.clear_context(&mut ctx);
     module.finalize_definitions().map_err(|e| err(&e))?;
     let code = module.get_finalized_function(id);
     // SAFETY: `code` is the finalized function with the signature declared above.
     let entry: KernelFn = unsafe { std::mem::transmute::<*const u8, KernelFn>(code) };
-    Ok(Kernel { module: Some(module), _plans: plans, entry, layout, clif, clif_insts })
+    Ok((Kernel { module: Some(module), _plans: plans, entry, layout, clif, clif_insts }, asm))
 }
 
 /// In f32, a value (or table) whose largest magnitude at the scene's
