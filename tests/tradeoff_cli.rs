@@ -132,3 +132,23 @@ fn tradeoff_knob_sets_every_row_and_the_reference() {
     let (ok, _, stderr) = w1_tradeoff(&["--knob", "df=0.5 Hz", "--sweep", "df=1 Hz"]);
     assert!(!ok && stderr.contains("knob `df` is both set (--knob) and swept (--sweep)"), "{stderr}");
 }
+
+/// The full-band W1 likelihood (`taylorf2_tradeoff_full.gw`, the README's
+/// second tradeoff table): every setting, `f32 fastest` included, stays
+/// within the bounds (waveform mismatch ≤ 1e-6, gradient relative
+/// error ≤ 1e-4), so the table's speed-ups are the knobs' whole range.
+#[test]
+fn full_band_likelihood_stays_within_the_accuracy_bounds_in_every_setting() {
+    let json = std::env::temp_dir().join(format!("gwml-tradeoff-full-{}.json", std::process::id()));
+    let (ok, _, stderr) =
+        gwml(&["tradeoff", "examples/taylorf2_tradeoff_full.gw", "--psd", "psd", "--reps", "3", "--json", json.to_str().unwrap()]);
+    assert!(ok, "{stderr}");
+    let items: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let items = items.as_array().unwrap();
+    assert_eq!(items.len(), 9, "three precisions × three math modes");
+    for it in items {
+        let (m, g) = (it["mismatch"].as_f64().unwrap(), it["grad_error"].as_f64().unwrap());
+        assert!(m <= 1e-6 && g <= 1e-4, "{it}");
+    }
+    std::fs::remove_file(&json).ok();
+}
