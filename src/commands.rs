@@ -1,7 +1,6 @@
 //! The `gwml` subcommands. Each returns `Err(message)` for the user.
 
-use crate::{BindArgs, CompileArgs, Emit, FitArgs, Format, KnobArgs, MathArg, OptimizerArg, PrecisionArg, RunArgs};
-use gwml::compiler::ir::{MathMode, Precision};
+use crate::{BindArgs, CompileArgs, Emit, FitArgs, Format, KnobArgs, OptimizerArg, RunArgs};
 use gwml::compiler::syntax::print_ast;
 use gwml::compiler::Options;
 use gwml::{Error, Model, Value};
@@ -25,25 +24,9 @@ pub(crate) fn knob_assignment(s: &str, flag: &str) -> Result<(String, String), S
     }
 }
 
-fn precision(p: PrecisionArg) -> Precision {
-    match p {
-        PrecisionArg::F64 => Precision::F64,
-        PrecisionArg::F32 => Precision::F32,
-        PrecisionArg::Mixed => Precision::Mixed,
-    }
-}
-
-fn math(m: MathArg) -> MathMode {
-    match m {
-        MathArg::Exact => MathMode::Exact,
-        MathArg::Fast => MathMode::Fast,
-        MathArg::Fastest => MathMode::Fastest,
-    }
-}
-
 pub(crate) fn options(k: KnobArgs) -> Result<Options, String> {
     let knobs = k.knobs.iter().map(|s| knob_assignment(s, "--knob")).collect::<Result<Vec<_>, _>>()?;
-    Ok(Options { knobs, precision: k.precision.map(precision), math: k.math.map(math), outputs: None })
+    Ok(Options { knobs, precision: k.precision, math: k.math, ..Options::default() })
 }
 
 /// `gwml compile`.
@@ -56,15 +39,15 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
         return Ok(());
     }
     let t1 = Instant::now();
-    let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
+    let scene = model.scene_with(a.scene.as_deref(), gwml::compiler::Options { verify: a.verify, ..options(a.knobs)? }).map_err(render)?;
     let t_fwd = t1.elapsed();
     let has_grads = scene.ir().has_gradients();
     let t2 = Instant::now();
     let grad_kernel = if has_grads { Some(scene.gradient_kernel().map_err(render)?) } else { None };
     let t_grad = t2.elapsed();
     match a.emit {
-        Some(Emit::Ir) => print!("{}", scene.pipeline.pruned),
-        Some(Emit::Adjoint) => print!("{}", scene.pipeline.optimized),
+        Some(Emit::Ir) => print!("{}", gwml::compiler::driver::ir_text(&scene.pipeline.pruned)),
+        Some(Emit::Adjoint) => print!("{}", gwml::compiler::driver::ir_text(&scene.pipeline.optimized)),
         Some(Emit::Clif) => print!("{}", grad_kernel.unwrap_or(scene.forward_kernel()).clif),
         Some(Emit::Asm) => {
             let ir = if has_grads { &scene.pipeline.optimized } else { scene.forward_ir() };
@@ -483,8 +466,8 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
     let model = Model::from_file(&a.file).map_err(render)?;
     let configs: Vec<Config> = all_configs()
         .into_iter()
-        .filter(|c| a.precision.is_empty() || a.precision.iter().any(|p| precision(*p) == c.precision))
-        .filter(|c| a.math.is_empty() || a.math.iter().any(|m| math(*m) == c.math))
+        .filter(|c| a.precision.is_empty() || a.precision.contains(&c.precision))
+        .filter(|c| a.math.is_empty() || a.math.contains(&c.math))
         .collect();
     let mut sweeps = Vec::new();
     for s in &a.sweep {

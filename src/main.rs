@@ -8,6 +8,7 @@ mod plot;
 mod repl;
 
 use clap::{Parser, Subcommand, ValueEnum};
+use gwml::compiler::ir::{MathMode, Precision, UnknownSetting};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -69,40 +70,29 @@ pub enum Emit {
     Asm,
 }
 
-/// Floating-point precision of generated code.
-#[derive(Clone, Copy, ValueEnum)]
-pub enum PrecisionArg {
-    /// 64-bit.
-    F64,
-    /// 32-bit (reductions still accumulate in 64-bit; values far outside
-    /// f32's range, such as strains of 1e-23, are stored scaled by powers of two).
-    F32,
-    /// 32-bit, rescaled as f32 is, except phases (what flows into sin,
-    /// cos, tan or a complex exp) and reductions, which are 64-bit;
-    /// `--emit adjoint` marks them `f64`.
-    Mixed,
-}
-
-/// How generated code computes sin, cos, exp, log, cbrt and pow.
-#[derive(Clone, Copy, ValueEnum)]
-pub enum MathArg {
-    /// libm accuracy (inline code within 2 ulp of glibc where that is faster, libm otherwise).
-    Exact,
-    /// Inline polynomials, about 1e-12 relative error.
-    Fast,
-    /// Inline polynomials, about 1e-7 relative error.
-    Fastest,
+/// Parses a `--precision` or `--math` value with the compiler's own
+/// parser of the setting (the one the scene's `precision:`/`math:` and the
+/// REPL use).
+fn setting<T: std::str::FromStr<Err = UnknownSetting>>(s: &str) -> Result<T, String> {
+    s.parse().map_err(|e: UnknownSetting| format!("{e}; use {}", e.help))
 }
 
 /// Overrides of a scene's speed/accuracy knobs.
 #[derive(clap::Args, Clone)]
 pub struct KnobArgs {
-    /// Override the scene's precision knob.
-    #[arg(long, value_enum)]
-    pub precision: Option<PrecisionArg>,
-    /// Override the scene's math knob.
-    #[arg(long, value_enum)]
-    pub math: Option<MathArg>,
+    /// Override the scene's precision knob: f64; f32 (reductions still
+    /// accumulate in 64-bit; values far outside f32's range, such as strains
+    /// of 1e-23, are stored scaled by powers of two); or mixed (f32, rescaled
+    /// as f32 is, except phases — what flows into sin, cos, tan or a complex
+    /// exp — and reductions, which are 64-bit; `--emit adjoint` marks them `f64`).
+    #[arg(long, value_name = "f64|f32|mixed", value_parser = setting::<Precision>)]
+    pub precision: Option<Precision>,
+    /// Override the scene's math knob, how generated code computes sin, cos,
+    /// exp, log, cbrt and pow: exact (libm accuracy: inline code within 2 ulp
+    /// of glibc where that is faster, libm otherwise), fast (inline
+    /// polynomials, ~1e-12 relative error) or fastest (~1e-7).
+    #[arg(long, value_name = "exact|fast|fastest", value_parser = setting::<MathMode>)]
+    pub math: Option<MathMode>,
     /// Set one of the scene's `knob` declarations: NAME=VALUE, the value
     /// written as in the scene, with its unit (`--knob df="0.25 Hz"`,
     /// `--knob pn_order=5`). Repeatable.
@@ -134,6 +124,11 @@ pub struct CompileArgs {
     /// Print op counts per stage, kernel counts and compile time per stage.
     #[arg(long)]
     pub stats: bool,
+    /// Verify the IR after every pass (debug builds always do; so does any
+    /// command with GWML_VERIFY=1 in the environment). A failure is an
+    /// internal compiler error naming the pass.
+    #[arg(long)]
+    pub verify: bool,
 }
 
 /// Param values and input data bound before running.
@@ -502,12 +497,12 @@ pub struct TradeoffArgs {
     pub scene: Option<String>,
     #[command(flatten)]
     pub bind: BindArgs,
-    /// Precisions to sweep [default: all].
-    #[arg(long, value_enum, value_delimiter = ',')]
-    pub precision: Vec<PrecisionArg>,
-    /// Math modes to sweep [default: all].
-    #[arg(long, value_enum, value_delimiter = ',')]
-    pub math: Vec<MathArg>,
+    /// Precisions to sweep, comma-separated (f64, f32, mixed) [default: all].
+    #[arg(long, value_name = "PRECISION,...", value_delimiter = ',', value_parser = setting::<Precision>)]
+    pub precision: Vec<Precision>,
+    /// Math modes to sweep, comma-separated (exact, fast, fastest) [default: all].
+    #[arg(long, value_name = "MATH,...", value_delimiter = ',', value_parser = setting::<MathMode>)]
+    pub math: Vec<MathMode>,
     /// Also sweep one of the scene's `knob` declarations over comma-separated
     /// values, NAME=V1,V2,... (`--sweep df="0.25 Hz,0.5 Hz"`,
     /// `--sweep pn_order=4,6`); repeatable (every combination is measured).

@@ -7,7 +7,7 @@
 //! earlier definitions. Redefining a name replaces it, and since the whole
 //! session is recompiled, its dependents follow.
 
-use gwml::compiler::ir::{Function, Precision};
+use gwml::compiler::ir::{Function, Precision, UnknownSetting};
 use gwml::compiler::{Options, Program};
 use gwml::{Error, Model, Value};
 use rustyline::completion::{Completer, Pair};
@@ -373,7 +373,7 @@ impl Repl {
                 let wrt = wrt.trim().trim_start_matches('[').trim_end_matches(']');
                 let scene = self.scene(&format!("    output {VALUE} = {expr}\n    grad {VALUE} wrt [{wrt}]"))?;
                 if name == "adjoint" {
-                    print!("{}", scene.pipeline.optimized);
+                    print!("{}", gwml::compiler::driver::ir_text(&scene.pipeline.optimized));
                     return Ok(true);
                 }
                 let out = scene.bind().value_and_grad().map_err(|e| self.render(e))?;
@@ -390,7 +390,7 @@ impl Repl {
                 let o = &f.outputs[0];
                 println!("{} [{}]", f.fmt_ty(f.ty(o.value)), o.unit);
             }
-            "ir" => print!("{}", self.scene(&format!("    output {VALUE} = {rest}"))?.pipeline.pruned),
+            "ir" => print!("{}", gwml::compiler::driver::ir_text(&self.scene(&format!("    output {VALUE} = {rest}"))?.pipeline.pruned)),
             "clif" => print!("{}", self.scene(&format!("    output {VALUE} = {rest}"))?.forward_kernel().clif),
             "time" => {
                 let scene = self.scene(&format!("    output {VALUE} = {rest}"))?;
@@ -459,7 +459,7 @@ impl Repl {
                     _ => return Err("error: :plot needs an array (a value over a grid)\n".into()),
                 };
                 let gwml::compiler::ir::Shape::Grid(g) = f.ty(o.value).shape else { unreachable!("arrays live on grids") };
-                let grid = &f.grids[g.0 as usize];
+                let grid = f.grid(g);
                 let xs: Vec<f64> = (0..grid.len).map(|i| grid.start + i as f64 * grid.step).collect();
                 let y_label = if o.unit == "1" { expr.trim().to_string() } else { format!("{} [{}]", expr.trim(), o.unit) };
                 crate::plot::line_plot(
@@ -474,12 +474,8 @@ impl Repl {
                 println!("wrote {}", file.trim());
             }
             "precision" => {
-                self.session.precision = Some(match rest {
-                    "f64" => Precision::F64,
-                    "f32" => Precision::F32,
-                    "mixed" => Precision::Mixed,
-                    other => return Err(format!("error: unknown precision `{other}`; use f64, f32 or mixed\n")),
-                });
+                let precision: Precision = rest.parse().map_err(|e: UnknownSetting| format!("error: {e}; use {}\n", e.help))?;
+                self.session.precision = Some(precision);
                 println!("precision {rest}");
             }
             "defs" => {

@@ -210,7 +210,13 @@ pub fn sweep(
         progress(i, count, &config);
         // The reference must compile and run; other settings may fail
         // (reported in their row), at compile time or when run.
-        let options = Options { precision: Some(config.precision), math: Some(config.math), knobs: config.knobs.clone(), outputs: None };
+        let options = Options {
+            precision: Some(config.precision),
+            math: Some(config.math),
+            knobs: config.knobs.clone(),
+            outputs: None,
+            ..Options::default()
+        };
         let compiled = match model.scene_with(scene, options.clone()) {
             Ok(compiled) => compiled,
             Err(e) if i > 0 => {

@@ -240,7 +240,7 @@ scene w {
     let z_in = |precision: Precision| {
         let scene = model.scene_with(None, Options { precision: Some(precision), math: None, ..Default::default() }).unwrap();
         // The rule marks cis (and the phase under it) f64; f64 and f32 mark nothing.
-        let wide = scene.forward_ir().wide_values();
+        let wide = gwml::compiler::passes::precision::wide_values(scene.forward_ir());
         if precision == Precision::Mixed {
             let cis = scene
                 .forward_ir()

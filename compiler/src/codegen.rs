@@ -523,7 +523,7 @@ fn compile_with(func: &Function, disasm: bool) -> Result<(Kernel, Option<String>
         input_grads: Vec::new(),
     };
     let storage = func.precision.storage();
-    let wide = func.wide_values();
+    let wide = crate::passes::precision::wide_values(func);
     for (i, input) in func.inputs.iter().enumerate() {
         layout.buffers.push(BufferInfo {
             kind: BufferKind::Input(i),
@@ -607,7 +607,7 @@ fn f32_range_problem(func: &Function) -> Option<String> {
     let what = if let Some(t) = func.tables.iter().position(|t| out(t.data.iter().fold(0.0, |m, x| m.max(x.abs())))) {
         format!("a precomputed table (table {t})")
     } else {
-        let magnitudes = func.default_magnitudes()?;
+        let magnitudes = crate::passes::precision::default_magnitudes(func)?;
         // Constants (and their broadcasts) are exempt: `masked_div` compares
         // with f64::MAX, which is +inf in f32 and still masks what it should.
         let computed = |i: usize| !matches!(func.insts[i].op, Op::Const(_) | Op::Broadcast(..)) && func.insts[i].ty.elem != Elem::Bool;
@@ -641,7 +641,7 @@ struct Gen<'a> {
     /// The float type of inputs, outputs and library-call buffers.
     storage: Type,
     /// Per instruction: computed in f64 although the storage is f32
-    /// ([`Function::wide_values`]).
+    /// ([`crate::passes::precision::wide_values`]).
     wide: Vec<bool>,
     sincos_slot: Option<cranelift_codegen::ir::StackSlot>,
     /// Sums not accumulated on a side of a split loop (see [`Gen::known_zero`]).

@@ -2,17 +2,21 @@
 //!
 //! parse (+ imports) → resolve modules → check + lower each scene →
 //! prune → adjoint → simplify → specialise → rescale → (codegen, in
-//! [`crate::codegen`]).
+//! [`crate::codegen`]). Every composition of passes is here
+//! ([`GRADIENT_PASSES`], [`FORWARD_PASSES`]); after each pass the IR is
+//! verified in debug builds, or when asked ([`Options::verify`],
+//! `GWML_VERIFY=1`).
 
 use crate::check::{collect_modules, Checker, KnobOverride};
-use crate::diagnostics::{render_all, Diagnostic};
+use crate::front::diagnostics::{render_all, Diagnostic};
+use crate::front::source::{FileId, SourceMap};
+use crate::front::stdlib;
+use crate::front::syntax::{self, ast};
 use crate::ir::{Function, Precision};
 use crate::passes;
-use crate::source::{FileId, SourceMap};
-use crate::stdlib;
-use crate::syntax::{self, ast};
 use std::collections::HashMap;
 use std::fmt;
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 /// Compilation failed; holds every diagnostic and the sources they point into.
@@ -47,6 +51,13 @@ pub enum PipelineError {
     /// A knob override does not parse or check; its diagnostics point into
     /// the scene or into the override's text.
     Compile(CompileError),
+    /// A pass produced IR the verifier rejects: a compiler bug.
+    Internal {
+        /// The pass that ran last.
+        pass: &'static str,
+        /// What the verifier found.
+        message: String,
+    },
 }
 
 impl fmt::Display for PipelineError {
@@ -54,6 +65,12 @@ impl fmt::Display for PipelineError {
         match self {
             PipelineError::Scene(s) => f.write_str(s),
             PipelineError::Compile(c) => c.fmt(f),
+            PipelineError::Internal { pass, message } => {
+                write!(
+                    f,
+                    "internal compiler error: the IR after pass `{pass}` is invalid: {message} (please report this with the .gw file)"
+                )
+            }
         }
     }
 }
@@ -87,6 +104,9 @@ pub struct Options {
     /// optimiser calls it, without the array outputs kept for its error
     /// columns.
     pub outputs: Option<Vec<String>>,
+    /// Verify the IR after every pass, as debug builds and `GWML_VERIFY=1`
+    /// do (`gwml compile --verify`).
+    pub verify: bool,
 }
 
 /// Instruction counts and times of each stage, for `gwml compile --stats`.
@@ -117,6 +137,8 @@ pub struct ScenePipeline {
     pub optimized: Function,
     /// Counts and times.
     pub stats: Stats,
+    /// Whether the IR is verified after every pass (also by [`ScenePipeline::forward`]).
+    pub verify: bool,
 }
 
 impl Program {
@@ -214,7 +236,7 @@ impl Program {
         match name {
             Some(n) => self.scenes.iter().find(|s| s.name == n).ok_or_else(|| {
                 let names = self.scene_names();
-                match crate::diagnostics::did_you_mean(n, names.iter().copied()) {
+                match crate::front::diagnostics::did_you_mean(n, names.iter().copied()) {
                     Some(s) => format!("no scene `{n}`; did you mean `{s}`?"),
                     None => format!("no scene `{n}`; scenes: {}", if names.is_empty() { "(none)".into() } else { names.join(", ") }),
                 }
@@ -249,36 +271,68 @@ impl Program {
             }
             checked.retain_outputs(|o| keep.contains(&o.name));
         }
-        Ok(run_passes(checked))
+        run_passes(checked, verify_after_passes(&opts))
     }
 }
 
-/// Runs the IR passes on a checked function.
-pub fn run_passes(checked: Function) -> ScenePipeline {
-    let mut times = Vec::new();
+/// Whether `GWML_VERIFY=1` asks for the IR to be verified after every
+/// pass (read once; the only environment the compiler reads).
+fn verify_requested_by_env() -> bool {
+    static VERIFY: OnceLock<bool> = OnceLock::new();
+    *VERIFY.get_or_init(|| std::env::var("GWML_VERIFY").is_ok_and(|v| v == "1"))
+}
+
+/// Whether passes are followed by the verifier: always in debug builds
+/// (and so in every test), in release when [`Options::verify`] or
+/// `GWML_VERIFY=1` asks.
+fn verify_after_passes(opts: &Options) -> bool {
+    cfg!(debug_assertions) || opts.verify || verify_requested_by_env()
+}
+
+/// An IR-to-IR pass, by name (the name is what `--stats` and an
+/// internal error print).
+type Pass = (&'static str, fn(&Function) -> Function);
+
+/// The passes from the checked IR to what codegen compiles, in order.
+const GRADIENT_PASSES: [Pass; 5] = [
+    ("prune", passes::prune),
+    ("adjoint", passes::adjoint),
+    ("simplify", passes::simplify),
+    ("specialise", passes::specialise),
+    ("rescale", passes::rescale),
+];
+
+/// The passes of a forward-only kernel: as [`GRADIENT_PASSES`] without the adjoint.
+const FORWARD_PASSES: [Pass; 4] =
+    [("prune", passes::prune), ("simplify", passes::simplify), ("specialise", passes::specialise), ("rescale", passes::rescale)];
+
+/// Runs one pass, timing it and, when `verify`, checking the IR it returns
+/// (a failure is a compiler bug, reported as [`PipelineError::Internal`]).
+fn run_pass(
+    (name, pass): Pass,
+    input: &Function,
+    verify: bool,
+    times: &mut Vec<(&'static str, Duration)>,
+) -> Result<Function, PipelineError> {
     let t = Instant::now();
-    let pruned = passes::prune(&checked);
-    times.push(("prune", t.elapsed()));
-    let t = Instant::now();
-    let adjoint = passes::adjoint(&pruned);
-    times.push(("adjoint", t.elapsed()));
-    let t = Instant::now();
-    let simplified = passes::simplify(&adjoint);
-    times.push(("simplify", t.elapsed()));
-    let t = Instant::now();
-    let specialised = passes::specialise(&simplified);
-    times.push(("specialise", t.elapsed()));
-    let t = Instant::now();
-    let optimized = passes::rescale(&specialised);
-    times.push(("rescale", t.elapsed()));
-    for (stage, f) in
-        [("prune", &pruned), ("adjoint", &adjoint), ("simplify", &simplified), ("specialise", &specialised), ("rescale", &optimized)]
-    {
-        if let Err(e) = f.verify() {
-            // A verifier failure is a compiler bug; surface it loudly in debug builds.
-            debug_assert!(false, "IR invalid after {stage}: {e}");
-        }
+    let output = pass(input);
+    times.push((name, t.elapsed()));
+    if verify {
+        output.verify().map_err(|message| PipelineError::Internal { pass: name, message })?;
     }
+    Ok(output)
+}
+
+/// Runs the gradient pipeline ([`GRADIENT_PASSES`]) on a checked function,
+/// keeping the IR after pruning, after the adjoint and at the end.
+pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, PipelineError> {
+    let mut times = Vec::new();
+    let [prune, adjoint, simplify, specialise, rescale] = GRADIENT_PASSES;
+    let pruned = run_pass(prune, &checked, verify, &mut times)?;
+    let adjoint = run_pass(adjoint, &pruned, verify, &mut times)?;
+    let simplified = run_pass(simplify, &adjoint, verify, &mut times)?;
+    let specialised = run_pass(specialise, &simplified, verify, &mut times)?;
+    let optimized = run_pass(rescale, &specialised, verify, &mut times)?;
     let stats = Stats {
         checked_ops: checked.insts.len(),
         pruned_ops: pruned.insts.len(),
@@ -286,7 +340,28 @@ pub fn run_passes(checked: Function) -> ScenePipeline {
         optimized_ops: optimized.insts.len(),
         times,
     };
-    ScenePipeline { checked, pruned, adjoint, optimized, stats }
+    Ok(ScenePipeline { checked, pruned, adjoint, optimized, stats, verify })
+}
+
+impl ScenePipeline {
+    /// The IR of the forward-only kernel: the pruned IR without its
+    /// gradients, through [`FORWARD_PASSES`].
+    pub fn forward(&self) -> Result<Function, PipelineError> {
+        let mut func = self.pruned.clone();
+        func.grads.clear();
+        func.input_grads.clear();
+        for pass in FORWARD_PASSES {
+            func = run_pass(pass, &func, self.verify, &mut Vec::new())?;
+        }
+        Ok(func)
+    }
+}
+
+/// The text of `func` as `--emit ir|adjoint` prints it: in mixed
+/// precision, the values computed in f64 are marked (this runs the
+/// precision analysis; plain `Display` runs nothing).
+pub fn ir_text(func: &Function) -> String {
+    func.marked(&passes::precision::wide_values(func)).to_string()
 }
 
 fn dedup(diags: &mut Vec<Diagnostic>) {
@@ -313,7 +388,7 @@ fn load_imports(
         let name = path[1];
         let Some(text) = stdlib::source(name) else {
             let mut d = Diagnostic::error(u.path[1].span, format!("no standard library file `{name}`"));
-            d = match crate::diagnostics::did_you_mean(name, stdlib::FILES.iter().map(|f| f.0)) {
+            d = match crate::front::diagnostics::did_you_mean(name, stdlib::FILES.iter().map(|f| f.0)) {
                 Some(s) => d.with_help(format!("did you mean `std::{s}`?")),
                 None => d.with_help(format!("files: {}", stdlib::FILES.iter().map(|f| f.0).collect::<Vec<_>>().join(", "))),
             };
@@ -338,7 +413,7 @@ fn load_imports(
                     .filter_map(|i| if let ast::Item::Module(m) = i { Some(m.name.node.as_str()) } else { None })
                     .collect();
                 let mut d = Diagnostic::error(n.span, format!("`std::{name}` has no module `{}`", n.node));
-                d = match crate::diagnostics::did_you_mean(&n.node, names.iter().copied()) {
+                d = match crate::front::diagnostics::did_you_mean(&n.node, names.iter().copied()) {
                     Some(s) => d.with_help(format!("did you mean `{s}`?")),
                     None => d.with_help(format!("it defines: {}", names.join(", "))),
                 };

@@ -40,6 +40,8 @@ pub enum Error {
     Scene(String),
     /// Code generation failed.
     Codegen(codegen::CodegenError),
+    /// A compiler bug caught by the IR verifier (see [`PipelineError::Internal`]).
+    Internal(String),
     /// Reading a file failed.
     Io(String),
     /// A name given to `param`/`input`/`scalar`/`grad` that the scene lacks.
@@ -66,7 +68,7 @@ impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Error::Compile(e) => write!(f, "{}", e.render(false)),
-            Error::Scene(s) | Error::Io(s) | Error::Bind(s) => write!(f, "{s}"),
+            Error::Scene(s) | Error::Io(s) | Error::Bind(s) | Error::Internal(s) => write!(f, "{s}"),
             Error::Codegen(e) => write!(f, "{e}"),
             Error::UnknownName { kind, name, suggestion } => {
                 write!(f, "the scene has no {kind} `{name}`")?;
@@ -85,6 +87,16 @@ impl std::error::Error for Error {}
 impl From<CompileError> for Error {
     fn from(e: CompileError) -> Self {
         Error::Compile(e)
+    }
+}
+
+impl From<PipelineError> for Error {
+    fn from(e: PipelineError) -> Self {
+        match e {
+            PipelineError::Scene(s) => Error::Scene(s),
+            PipelineError::Compile(c) => Error::Compile(c),
+            internal @ PipelineError::Internal { .. } => Error::Internal(internal.to_string()),
+        }
     }
 }
 
@@ -115,10 +127,7 @@ impl Model {
 
     /// JIT-compiles scene `name` with `opts`.
     pub fn scene_with(&self, name: Option<&str>, opts: Options) -> Result<Scene, Error> {
-        let pipeline = self.program.pipeline(name, opts).map_err(|e| match e {
-            PipelineError::Scene(s) => Error::Scene(s),
-            PipelineError::Compile(c) => Error::Compile(c),
-        })?;
+        let pipeline = self.program.pipeline(name, opts)?;
         Scene::new(pipeline)
     }
 }
@@ -141,11 +150,7 @@ impl fmt::Debug for Scene {
 
 impl Scene {
     fn new(pipeline: ScenePipeline) -> Result<Scene, Error> {
-        let mut fwd = pipeline.pruned.clone();
-        fwd.grads.clear();
-        fwd.input_grads.clear();
-        let forward_ir =
-            gwml_compiler::passes::specialise_and_rescale(&gwml_compiler::passes::simplify(&gwml_compiler::passes::prune(&fwd)));
+        let forward_ir = pipeline.forward().map_err(Error::from)?;
         let forward = codegen::compile(&forward_ir).map_err(Error::Codegen)?;
         Ok(Scene { pipeline, forward_ir, forward, gradient: OnceLock::new() })
     }
@@ -356,7 +361,7 @@ impl<'s> Run<'s> {
         let want = f.len_of(info.ty.shape);
         if len != want {
             let grid = match info.ty.shape {
-                Shape::Grid(g) => format!(" (grid `{}`)", f.grids[g.0 as usize].name),
+                Shape::Grid(g) => format!(" (grid `{}`)", f.grid(g).name),
                 Shape::Scalar => " (a scalar)".into(),
             };
             return Err(Error::Bind(format!("input `{name}` needs {want} values{grid}, but {len} were given")));

@@ -198,7 +198,7 @@ impl Run<'_> {
         let Shape::Grid(g) = info.ty.shape else {
             return Err(Error::Bind(format!("input `{name}` is a scalar; a spectrum file needs an input over a frequency grid")));
         };
-        let data = spectrum.on_grid(&f.grids[g.0 as usize])?;
+        let data = spectrum.on_grid(f.grid(g))?;
         self.input_real(name, &data)
     }
 }

@@ -115,7 +115,7 @@ impl<'s> Trainer<'s> {
         for g in func.input_grads.iter().filter(|g| g.output == oi) {
             let input = &func.inputs[g.input];
             let dims = match input.ty.shape {
-                Shape::Grid(gid) => func.grids[gid.0 as usize].dims.clone(),
+                Shape::Grid(gid) => func.grid(gid).dims.clone(),
                 Shape::Scalar => vec![],
             };
             let init = input.default.as_ref().ok_or_else(|| Error::Bind(format!("weight `{}` has no initial value", input.name)))?;

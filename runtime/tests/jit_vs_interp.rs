@@ -734,7 +734,7 @@ fn f32_rescaling_keeps_tiny_strains_in_range_and_exact() {
     assert!(rel(y, y0) < 1e-12, "rescaled {y} vs plain {y0}");
     let (g, g0) = (r.grad(f, "y", "a").unwrap(), r0.grad(plain, "y", "a").unwrap());
     assert!(rel(g, g0) < 1e-12, "rescaled d/da {g} vs plain {g0}");
-    let magnitudes = f.default_magnitudes().unwrap();
+    let magnitudes = gwml_compiler::passes::precision::default_magnitudes(f).unwrap();
     for (i, m) in magnitudes.iter().enumerate() {
         let constant = matches!(f.insts[i].op, gwml_compiler::ir::Op::Const(_) | gwml_compiler::ir::Op::Broadcast(..));
         assert!(constant || *m == 0.0 || (2f64.powi(-80)..2f64.powi(80)).contains(m), "%{i} stored at {m:e}:\n{f}");

@@ -11,7 +11,7 @@
 //! losses: the adjoint of `z = x + iy` is `∂L/∂x + i ∂L/∂y`. For a
 //! holomorphic `z = f(a)` this gives `ā += z̄ · conj(f'(a))`.
 
-use crate::builder::Builder;
+use crate::ir::builder::Builder;
 use crate::ir::*;
 use num_complex::Complex64 as C64;
 use std::collections::HashMap;

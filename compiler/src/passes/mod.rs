@@ -6,10 +6,13 @@
 //! - [`simplify`]: rebuild through the folding builder (CSE, constant
 //!   folding, algebraic identities), then prune.
 //! - [`specialise`]: fold what the grid fixes into precomputed tables.
+//! - [`precision`]: the analysis of which values mixed precision computes
+//!   in f64, and of magnitudes at the defaults (used by rescale and codegen).
 //! - [`rescale`]: in f32, store values scaled by powers of two so strains
 //!   of 1e-23 and their squares stay inside f32's range.
 
 mod adjoint;
+pub mod precision;
 mod prune;
 mod rescale;
 mod specialise;
@@ -19,14 +22,8 @@ pub use prune::prune;
 pub use rescale::rescale;
 pub use specialise::specialise;
 
-use crate::builder::Builder;
+use crate::ir::builder::Builder;
 use crate::ir::{Function, Value};
-
-/// The passes between simplification and codegen, in order: [`specialise`],
-/// then [`rescale`] (the driver runs them one by one to time them).
-pub fn specialise_and_rescale(func: &Function) -> Function {
-    rescale(&specialise(func))
-}
 
 /// CSE, constant folding and algebraic simplification, followed by DCE.
 pub fn simplify(func: &Function) -> Function {

@@ -5,7 +5,7 @@
 //! a likelihood that f64 computes well is lost. This pass stores every
 //! value `x` as `x_s = x · 2^-e` with an exponent `e` fixed at compile time,
 //! chosen from the value's largest magnitude at the scene's defaults
-//! ([`Function::default_magnitudes`]) so that stored values stay near 1.
+//! ([`super::precision::default_magnitudes`]) so that stored values stay near 1.
 //! Multiplying by a power of two is exact (barring overflow), so the f32
 //! rounding of every value is the same as without rescaling.
 //!
@@ -31,7 +31,7 @@
 //! codegen's range check refuses such scenes and points to `precision:
 //! mixed`, which computes them in f64.
 
-use crate::builder::Builder;
+use crate::ir::builder::Builder;
 use crate::ir::*;
 use num_complex::Complex64 as C64;
 
@@ -41,13 +41,13 @@ const LIMIT: i32 = 40;
 
 /// `func` with every value stored as `x · 2^-e` (see the module doc) when
 /// it stores values in f32 (precisions f32 and mixed; in mixed, this leaves
-/// phases the only values computed in f64, see [`Function::wide_values`]);
+/// phases the only values computed in f64, see [`super::precision::wide_values`]);
 /// unchanged in f64, and when the defaults are too expensive to evaluate.
 pub fn rescale(func: &Function) -> Function {
     if func.precision.storage() != Precision::F32 {
         return func.clone();
     }
-    let Some(magnitudes) = func.default_magnitudes() else {
+    let Some(magnitudes) = super::precision::default_magnitudes(func) else {
         return func.clone();
     };
     let mut header = func.clone();

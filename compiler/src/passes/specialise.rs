@@ -24,9 +24,9 @@
 //! Then every real grid-only array that a non-grid-only instruction (or a
 //! result) uses, and that costs more than a load, becomes a table.
 
-use crate::builder::Builder;
-use crate::interp;
+use crate::ir::builder::Builder;
 use crate::ir::*;
+use crate::kernels::interp;
 
 fn grid_only_flags(func: &Function) -> Vec<bool> {
     let mut g = vec![false; func.insts.len()];

@@ -1,8 +1,8 @@
 //! The reference interpreter: evaluates IR in f64 one instruction at a
-//! time, with the semantics of [`crate::eval`]. Slow and simple on purpose:
+//! time, with the semantics of [`crate::ir::eval`]. Slow and simple on purpose:
 //! it is the oracle the JIT is tested against.
 
-use crate::eval;
+use crate::ir::eval;
 use crate::ir::*;
 use num_complex::Complex64 as C64;
 
@@ -76,12 +76,12 @@ pub fn interpret(func: &Function, params: &[f64], inputs: &[Tensor]) -> InterpRe
             Op::Reduce(Reduce::Max, a) => vec![C64::new(values[a.index()].iter().map(|x| x.re).fold(f64::NEG_INFINITY, f64::max), 0.0)],
             Op::Dft(d, a) => {
                 let n = if d.inverse { len } else { values[a.index()].len() };
-                crate::dft::apply(d, n, &values[a.index()])
+                crate::kernels::dft::apply(d, n, &values[a.index()])
             }
             Op::Tensor(t, _, a, b) => {
                 let re = |v: Value| values[v.index()].iter().map(|z| z.re).collect::<Vec<f64>>();
                 let mut out = vec![0.0; t.out_len()];
-                crate::tensor::apply(t, &re(a), &re(b), &mut out);
+                crate::kernels::tensor::apply(t, &re(a), &re(b), &mut out);
                 out.into_iter().map(|x| C64::new(x, 0.0)).collect()
             }
         };

@@ -3,9 +3,9 @@
 
 use super::ast::*;
 use super::lexer::{lex, Token};
-use crate::diagnostics::Diagnostic;
-use crate::source::{FileId, Span, Spanned};
-use crate::units::is_unit_name;
+use crate::front::diagnostics::Diagnostic;
+use crate::front::source::{FileId, Span, Spanned};
+use crate::front::units::is_unit_name;
 use chumsky::input::ValueInput;
 use chumsky::pratt::{infix, left, prefix, right};
 use chumsky::prelude::*;

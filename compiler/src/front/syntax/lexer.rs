@@ -1,7 +1,7 @@
 //! The lexer: characters to tokens, skipping whitespace and `//` comments.
 
-use crate::diagnostics::Diagnostic;
-use crate::source::{FileId, Span};
+use crate::front::diagnostics::Diagnostic;
+use crate::front::source::{FileId, Span};
 use chumsky::prelude::*;
 use std::fmt;
 

@@ -1,7 +1,7 @@
 //! The discrete Fourier transforms of [`Dft`], computed with realfft
 //! (rustfft's real-input transforms). Generated kernels call
 //! [`gwml_dft_f64`] / [`gwml_dft_f32`] between fused loops; the interpreter
-//! calls [`apply`] directly. [`crate::interp::naive_dft`] is the independent
+//! calls [`apply`] directly. [`crate::kernels::interp::naive_dft`] is the independent
 //! O(n²) definition they are tested against.
 
 use crate::ir::Dft;
@@ -139,8 +139,8 @@ entry_point!(gwml_dft_f32, f32);
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::interp::naive_dft;
     use crate::ir::GridId;
+    use crate::kernels::interp::naive_dft;
     use num_complex::Complex64 as C64;
 
     fn pseudo_random(n: usize, seed: u64) -> Vec<f64> {

@@ -4,7 +4,7 @@
 //! The checker builds without folding so `--stats` can show what each pass
 //! removes; the adjoint and simplify passes build with folding on.
 
-use crate::eval;
+use super::eval;
 use crate::ir::*;
 use num_complex::Complex64 as C64;
 use std::collections::HashMap;

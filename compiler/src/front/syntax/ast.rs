@@ -1,7 +1,7 @@
 //! The abstract syntax tree: what the parser produces, before names are
 //! resolved or types checked. Every node carries its [`Span`].
 
-use crate::source::{Span, Spanned};
+use crate::front::source::{Span, Spanned};
 use std::fmt;
 
 /// An identifier with its span.

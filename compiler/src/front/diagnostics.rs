@@ -1,7 +1,7 @@
 //! Diagnostics: one shape for every error any stage reports, rendered with
 //! ariadne against the source it points at.
 
-use crate::source::{FileId, SourceMap, Span};
+use crate::front::source::{FileId, SourceMap, Span};
 use ariadne::{Color, Config, IndexType, Label, Report, ReportKind};
 
 /// How serious a diagnostic is.

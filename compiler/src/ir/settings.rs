@@ -1,0 +1,122 @@
+//! The scene's speed/accuracy settings: working precision and math mode.
+
+use std::fmt;
+use std::str::FromStr;
+
+/// Working precision of generated code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum Precision {
+    /// 64-bit floats everywhere.
+    #[default]
+    F64,
+    /// 32-bit floats for arithmetic; reductions accumulate in f64; values
+    /// far outside f32's range are stored scaled by powers of two
+    /// (`passes::rescale`).
+    F32,
+    /// f32, rescaled as [`Precision::F32`] is, except two kinds of values,
+    /// which are computed (and kept, in tables, scratch arrays and outputs)
+    /// in f64: phases, i.e. every value that flows through elementwise
+    /// arithmetic alone into the argument of a sine, cosine, tangent, `cis`
+    /// or complex exponential, and that function itself; and values still
+    /// outside f32's comfortable range after rescaling, i.e. whose largest
+    /// magnitude, when the scene is evaluated at its default params and
+    /// inputs, is below 2^-96 or above 2^96 (f32's normal range less 2^30
+    /// of headroom; the result of `exp(100)`, say), and what is computed
+    /// directly from those. Reductions accumulate in f64. Inputs, and what
+    /// transforms and tensor ops read and write, stay f32. See
+    /// `passes::precision::wide_values`.
+    Mixed,
+}
+
+impl Precision {
+    /// The element type of inputs, outputs and library-call buffers.
+    pub fn storage(self) -> Precision {
+        match self {
+            Precision::F64 => Precision::F64,
+            Precision::F32 | Precision::Mixed => Precision::F32,
+        }
+    }
+}
+
+impl fmt::Display for Precision {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Precision::F64 => "f64",
+            Precision::F32 => "f32",
+            Precision::Mixed => "mixed",
+        })
+    }
+}
+
+/// How generated code computes transcendental functions (the scene's
+/// `math` knob); see `mathlib` for the measured errors.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum MathMode {
+    /// Within 2 ulp of glibc libm (f64); f32 within 1 ulp of glibc's f32 functions.
+    #[default]
+    Exact,
+    /// About 1e-12 relative error (cheaper polynomials, no extra-precision tails).
+    Fast,
+    /// About 1e-7 relative error (f32 work and users who want speed).
+    Fastest,
+}
+
+impl fmt::Display for MathMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            MathMode::Exact => "exact",
+            MathMode::Fast => "fast",
+            MathMode::Fastest => "fastest",
+        })
+    }
+}
+
+impl Precision {
+    /// Every precision, in the order `--help` and error messages list them.
+    pub const ALL: [Precision; 3] = [Precision::F64, Precision::F32, Precision::Mixed];
+}
+
+impl MathMode {
+    /// Every math mode, from the most accurate.
+    pub const ALL: [MathMode; 3] = [MathMode::Exact, MathMode::Fast, MathMode::Fastest];
+}
+
+/// A setting's spelling that names no value; its `Display` lists the valid ones.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnknownSetting {
+    /// The setting (`precision` or `math`).
+    pub setting: &'static str,
+    /// What was written.
+    pub found: String,
+    /// What may be written, with a word on each.
+    pub help: &'static str,
+}
+
+impl fmt::Display for UnknownSetting {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "unknown {} `{}`", self.setting, self.found)
+    }
+}
+
+impl std::error::Error for UnknownSetting {}
+
+/// The one parser of each setting's spelling (the scene's `precision:` and
+/// `math:` settings, the CLI's `--precision`/`--math`, the REPL's
+/// `:precision`, `gwml tradeoff`): the names [`Display`](fmt::Display) prints.
+fn parse_setting<T: Copy + fmt::Display>(all: &[T], s: &str, setting: &'static str, help: &'static str) -> Result<T, UnknownSetting> {
+    all.iter().copied().find(|v| v.to_string() == s).ok_or_else(|| UnknownSetting { setting, found: s.to_string(), help })
+}
+
+impl FromStr for Precision {
+    type Err = UnknownSetting;
+    fn from_str(s: &str) -> Result<Precision, UnknownSetting> {
+        parse_setting(&Precision::ALL, s, "precision", "f64, f32 or mixed (f32 with phases in f64)")
+    }
+}
+
+impl FromStr for MathMode {
+    type Err = UnknownSetting;
+    fn from_str(s: &str) -> Result<MathMode, UnknownSetting> {
+        parse_setting(&MathMode::ALL, s, "math mode", "exact (libm accuracy), fast (~1e-12) or fastest (~1e-7)")
+    }
+}

@@ -1,0 +1,69 @@
+//! The precision analysis: which values mixed precision computes in f64,
+//! and each value's magnitude at the scene's defaults (what `rescale`
+//! scales by). Enters: a [`Function`]; leaves: one flag or magnitude per
+//! instruction. It runs the reference interpreter, so it is a pass the
+//! driver and codegen call, never something printing does.
+
+use crate::ir::{Elem, Function, Op, Precision, UnOp};
+use crate::kernels::interp;
+
+/// Per instruction, whether [`Precision::Mixed`] computes it in f64 (a
+/// phase, the periodic function of one, or a value out of f32's
+/// comfortable range at the defaults); all false in the other
+/// precisions.
+pub fn wide_values(func: &Function) -> Vec<bool> {
+    let mut wide = vec![false; func.insts.len()];
+    if func.precision != Precision::Mixed {
+        return wide;
+    }
+    if let Some(magnitudes) = default_magnitudes(func) {
+        let (lo, hi) = (2f64.powi(-96), 2f64.powi(96));
+        let out_of_range: Vec<bool> =
+            magnitudes.iter().enumerate().map(|(i, m)| func.insts[i].ty.elem != Elem::Bool && *m > 0.0 && (*m < lo || *m > hi)).collect();
+        // A value computed from one out of range is computed in f64 too
+        // (its operands would not survive conversion to f32).
+        for (i, inst) in func.insts.iter().enumerate() {
+            wide[i] = out_of_range[i] || inst.op.operands().iter().any(|a| out_of_range[a.index()]);
+        }
+    }
+    // Operands precede their users, so one backward sweep closes the set.
+    for i in (0..func.insts.len()).rev() {
+        let op = func.insts[i].op;
+        let phase = match op {
+            Op::Unary(UnOp::Sin | UnOp::Cos | UnOp::Tan | UnOp::Cis, a) => Some(a),
+            Op::Unary(UnOp::Exp, a) if func.ty(a).elem == Elem::Complex => Some(a),
+            _ => None,
+        };
+        if let Some(a) = phase {
+            wide[i] = true;
+            wide[a.index()] = true;
+        }
+        let elementwise = !matches!(op, Op::Reduce(..) | Op::Dft(..) | Op::Tensor(..));
+        if wide[i] && elementwise {
+            for a in op.operands() {
+                wide[a.index()] = true;
+            }
+        }
+    }
+    wide
+}
+
+/// The largest finite magnitude of each instruction's value (0 when all
+/// are zero or not finite) with the params and inputs at their defaults
+/// (an input without one at zero, a param without one at 1), by the
+/// reference interpreter; `None` when that would exceed
+/// [`interp::EVAL_BUDGET`].
+pub fn default_magnitudes(func: &Function) -> Option<Vec<f64>> {
+    let longest = func.grids.iter().map(|g| g.len).max().unwrap_or(1);
+    if func.insts.len().saturating_mul(longest) > interp::EVAL_BUDGET {
+        return None;
+    }
+    let params: Vec<f64> = func.params.iter().map(|p| p.default.map_or(1.0, |d| d * p.scale)).collect();
+    let inputs: Vec<interp::Tensor> = func
+        .inputs
+        .iter()
+        .map(|i| i.default.clone().unwrap_or_else(|| vec![num_complex::Complex64::new(0.0, 0.0); func.len_of(i.ty.shape)]))
+        .collect();
+    let values = interp::interpret(func, &params, &inputs).values;
+    Some(values.iter().map(|t| t.iter().flat_map(|z| [z.re.abs(), z.im.abs()]).filter(|x| x.is_finite()).fold(0.0, f64::max)).collect())
+}
