@@ -120,7 +120,8 @@ pub struct Stats {
     pub adjoint_ops: usize,
     /// After simplification (the IR code generation sees).
     pub optimized_ops: usize,
-    /// Time per stage, in pipeline order.
+    /// Time per stage, in pipeline order; then `verify`, the verifier's
+    /// total over every pass, when it ran.
     pub times: Vec<(&'static str, Duration)>,
 }
 
@@ -306,19 +307,23 @@ const GRADIENT_PASSES: [Pass; 5] = [
 const FORWARD_PASSES: [Pass; 4] =
     [("prune", passes::prune), ("simplify", passes::simplify), ("specialise", passes::specialise), ("rescale", passes::rescale)];
 
+/// Times of the passes, and of the verifier after them.
+#[derive(Default)]
+struct PassTimes {
+    passes: Vec<(&'static str, Duration)>,
+    verify: Option<Duration>,
+}
+
 /// Runs one pass, timing it and, when `verify`, checking the IR it returns
 /// (a failure is a compiler bug, reported as [`PipelineError::Internal`]).
-fn run_pass(
-    (name, pass): Pass,
-    input: &Function,
-    verify: bool,
-    times: &mut Vec<(&'static str, Duration)>,
-) -> Result<Function, PipelineError> {
+fn run_pass((name, pass): Pass, input: &Function, verify: bool, times: &mut PassTimes) -> Result<Function, PipelineError> {
     let t = Instant::now();
     let output = pass(input);
-    times.push((name, t.elapsed()));
+    times.passes.push((name, t.elapsed()));
     if verify {
+        let t = Instant::now();
         output.verify().map_err(|message| PipelineError::Internal { pass: name, message })?;
+        *times.verify.get_or_insert(Duration::ZERO) += t.elapsed();
     }
     Ok(output)
 }
@@ -326,7 +331,7 @@ fn run_pass(
 /// Runs the gradient pipeline ([`GRADIENT_PASSES`]) on a checked function,
 /// keeping the IR after pruning, after the adjoint and at the end.
 pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, PipelineError> {
-    let mut times = Vec::new();
+    let mut times = PassTimes::default();
     let [prune, adjoint, simplify, specialise, rescale] = GRADIENT_PASSES;
     let pruned = run_pass(prune, &checked, verify, &mut times)?;
     let adjoint = run_pass(adjoint, &pruned, verify, &mut times)?;
@@ -338,7 +343,7 @@ pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, Pipe
         pruned_ops: pruned.insts.len(),
         adjoint_ops: adjoint.insts.len(),
         optimized_ops: optimized.insts.len(),
-        times,
+        times: times.passes.into_iter().chain(times.verify.map(|t| ("verify", t))).collect(),
     };
     Ok(ScenePipeline { checked, pruned, adjoint, optimized, stats, verify })
 }
@@ -351,7 +356,7 @@ impl ScenePipeline {
         func.grads.clear();
         func.input_grads.clear();
         for pass in FORWARD_PASSES {
-            func = run_pass(pass, &func, self.verify, &mut Vec::new())?;
+            func = run_pass(pass, &func, self.verify, &mut PassTimes::default())?;
         }
         Ok(func)
     }
