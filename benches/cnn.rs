@@ -1,4 +1,4 @@
-//! Throughput of gwml's CNNs against `bench/cnn_torch.py` (PyTorch CPU),
+//! Throughput of gwml's CNNs against `benches/peers/cnn_torch.py` (PyTorch CPU),
 //! on two workloads:
 //!
 //! - `burst`: the small burst-detection CNN of `examples/burst_cnn.gw`

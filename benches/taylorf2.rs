@@ -17,14 +17,14 @@
 //! The data `d` is the model at slightly different params, computed with the
 //! strain scene first and bound as an input. The PSD is the toy curve of
 //! `examples/taylorf2_fit.gw`, `1e-47 (y^-4 + 2 + 2 y^2)`, y = f / 150 Hz
-//! (bench/peers.py uses the same one). Above the Schwarzschild ISCO (67.6 Hz
+//! (benches/peers/peers.py uses the same one). Above the Schwarzschild ISCO (67.6 Hz
 //! for this system) the cut strain is zero: its kernels split their loop
 //! there and evaluate the waveform on the 382 bins below it only (as
 //! LALSimulation does with f_max = 0); the `_full` scenes evaluate it on
 //! all 8,033 bins (as LALSimulation with f_max = 1024 Hz and ripplegw do).
 //!
 //! Lines starting with `gwml_` are machine-readable (`name value`), read by
-//! `bench/peers.py`.
+//! `benches/peers/peers.py`.
 
 use gwml::timing::median_us;
 use gwml::{Model, Value};

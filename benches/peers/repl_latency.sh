@@ -3,9 +3,9 @@
 # pipe; prints the median per entry from the REPL's own timing of each
 # line (wall clock between echoed prompts is not used: output is buffered).
 #
-#   cargo build --release && bash bench/repl_latency.sh [N]
+#   cargo build --release && bash benches/peers/repl_latency.sh [N]
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 n="${1:-200}"
 bin=target/release/gwml
 input=$(mktemp)

@@ -58,11 +58,11 @@ Run (from the repository root):
 
     taskset -c 0 env OMP_NUM_THREADS=1 \\
       XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" \\
-      /work/venv-peers/bin/python bench/peers.py
+      /work/venv-peers/bin/python benches/peers/peers.py
 
 The script sets those variables itself (before importing jax) and pins itself
 and its children to one CPU with os.sched_setaffinity, so a plain
-`/work/venv-peers/bin/python bench/peers.py` is equivalent. It then runs
+`/work/venv-peers/bin/python benches/peers/peers.py` is equivalent. It then runs
 `cargo bench --bench taylorf2` (pinned to the same CPU), or reads that
 bench's output from a file given with --gwml-output, and prints the table.
 """
@@ -82,7 +82,7 @@ os.environ["XLA_FLAGS"] = (
 ).strip()
 os.environ["JAX_PLATFORMS"] = "cpu"
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 M1, M2 = 36.0, 29.0
 MTSUN = 4.925490947641267e-6  # G Msun / c^3 in s (LAL's MTSUN_SI)

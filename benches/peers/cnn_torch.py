@@ -9,8 +9,8 @@ Setup (a venv outside the repository):
 
     python3 -m venv /work/venv-torch && /work/venv-torch/bin/pip install torch --index-url https://download.pytorch.org/whl/cpu numpy
     # (or plain PyPI when that index is unreachable: /work/venv-torch/bin/pip install torch numpy)
-    /work/venv-torch/bin/python bench/cnn_torch.py           # both workloads
-    /work/venv-torch/bin/python bench/cnn_torch.py glitch    # one of them
+    /work/venv-torch/bin/python benches/peers/cnn_torch.py           # both workloads
+    /work/venv-torch/bin/python benches/peers/cnn_torch.py glitch    # one of them
 
 The network is the same as gwml's: input 256 samples (1 channel),
 conv1d 8x1x16 padding 8 + ReLU, max pool 4 (257 -> 64), conv1d 16x8x8
