@@ -12,7 +12,6 @@ pub mod driver;
 pub mod eval;
 pub mod interp;
 pub mod ir;
-pub mod mathlib;
 pub mod passes;
 pub mod source;
 pub mod stdlib;
