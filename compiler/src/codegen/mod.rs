@@ -40,6 +40,8 @@ mod loops;
 mod math;
 pub mod mathlib;
 mod schedule;
+#[cfg(test)]
+mod tests;
 mod vector;
 
 pub use abi::{BufferInfo, BufferKind, CodegenError, Kernel, Layout, ScalarSlot};
