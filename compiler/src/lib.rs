@@ -19,4 +19,3 @@ pub use driver::{CompileError, Options, PipelineError, Program, ScenePipeline, S
 pub use front::{diagnostics, source, stdlib, syntax, units};
 pub use ir::{builder, eval};
 pub use kernels::{dft, interp, tensor};
-pub mod mathlib;
