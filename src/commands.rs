@@ -1,7 +1,7 @@
 //! The `gwml` subcommands. Each returns `Err(message)` for the user.
 
 use crate::{BindArgs, CompileArgs, Emit, FitArgs, Format, KnobArgs, OptimizerArg, RunArgs};
-use gwml::compiler::syntax::print_ast;
+use gwml::compiler::front::syntax::print_ast;
 use gwml::compiler::Options;
 use gwml::{Error, Model, Value};
 use serde_json::{json, Map};
@@ -294,14 +294,14 @@ fn spectrum_source(source: &str) -> Option<(gwml::spectrum::Kind, &str)> {
 
 /// `gwml fit`.
 pub fn fit(a: FitArgs) -> Result<(), String> {
-    use gwml_runtime::fit::{fit_run, Optimizer, Settings};
+    use gwml_runtime::fit::{fit_run, Algorithm, Settings};
     let model = Model::from_file(&a.file).map_err(render)?;
     let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
     let mut run = scene.bind();
     bind_args(&mut run, &a.bind)?;
     let optimizer = match a.optimizer {
-        OptimizerArg::Lbfgs => Optimizer::Lbfgs,
-        OptimizerArg::Adam => Optimizer::Adam,
+        OptimizerArg::Lbfgs => Algorithm::Lbfgs,
+        OptimizerArg::Adam => Algorithm::Adam,
     };
     let mut settings = Settings::new(optimizer);
     if let Some(n) = a.steps {
@@ -314,8 +314,8 @@ pub fn fit(a: FitArgs) -> Result<(), String> {
         settings.learning_rate = lr;
     }
     let every = match optimizer {
-        Optimizer::Lbfgs => 10,
-        Optimizer::Adam => 100,
+        Algorithm::Lbfgs => 10,
+        Algorithm::Adam => 100,
     };
     let f = scene.ir();
     let t0 = Instant::now();
@@ -344,8 +344,8 @@ pub fn fit(a: FitArgs) -> Result<(), String> {
     };
     let r = fit_run(&mut run, a.output.as_deref(), &settings, progress).map_err(render)?;
     let opt_name = match optimizer {
-        Optimizer::Lbfgs => "lbfgs",
-        Optimizer::Adam => "adam",
+        Algorithm::Lbfgs => "lbfgs",
+        Algorithm::Adam => "adam",
     };
     let names: Vec<&str> = r.free.iter().map(|p| p.name.as_str()).collect();
     let m = &r.minimum;
@@ -412,8 +412,8 @@ pub fn fit(a: FitArgs) -> Result<(), String> {
         r.free.len(),
         plural(r.free.len()),
         match optimizer {
-            Optimizer::Lbfgs => "L-BFGS",
-            Optimizer::Adam => "Adam",
+            Algorithm::Lbfgs => "L-BFGS",
+            Algorithm::Adam => "Adam",
         }
     );
     println!("stopped after {} step{} ({} evaluations): {}", m.steps, plural(m.steps), m.evaluations, m.stop);

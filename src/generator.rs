@@ -23,7 +23,7 @@ use crate::learn::parse_range;
 use crate::plot::{lines_plot, scatter_plot};
 use crate::{GeneratorFitArgs, GeneratorSampleArgs};
 use gwml_runtime::dataset::{self, Array, Dataset};
-use gwml_runtime::fit::{self, Optimizer, Settings};
+use gwml_runtime::fit::{self, Algorithm, Settings};
 use gwml_runtime::synth::{glitches, unit_signal, GlitchOptions, GlitchSignals, GLITCH_CLASSES};
 use gwml_runtime::{Error, Model, Run, Scene, Value};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -183,7 +183,7 @@ pub fn fit_example(run: &mut Run, params: &[ShapeParam], points: &[usize], x: &[
     ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
     // L-BFGS from the best few starts: the SNR's landscape over a long
     // shape's params has many local maxima.
-    let settings = Settings { max_steps: 200, rel_tol: 1e-10, ..Settings::new(Optimizer::Lbfgs) };
+    let settings = Settings { max_steps: 200, rel_tol: 1e-10, ..Settings::new(Algorithm::Lbfgs) };
     let bounds: Vec<Option<(f64, f64)>> = params.iter().map(|p| Some(p.range)).collect();
     let mut best: Option<fit::Minimum> = None;
     for (_, start) in ranked.iter().take(STARTS_REFINED) {

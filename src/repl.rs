@@ -154,8 +154,8 @@ impl Completer for ReplHelper {
         let mut cands: Vec<String> = self.names.borrow().clone();
         cands.extend(gwml::compiler::check::BUILTINS.iter().map(|b| b.0.to_string()));
         cands.extend(gwml::compiler::check::CONSTANTS.iter().map(|c| c.name.to_string()));
-        cands.extend(gwml::compiler::units::UNITS.iter().map(|u| u.name.to_string()));
-        for (file, text) in gwml::compiler::stdlib::FILES {
+        cands.extend(gwml::compiler::front::units::UNITS.iter().map(|u| u.name.to_string()));
+        for (file, text) in gwml::compiler::front::stdlib::FILES {
             cands.push(format!("std::{file}"));
             cands.extend(
                 text.lines()
@@ -488,8 +488,9 @@ impl Repl {
             }
             other => {
                 let names: Vec<&str> = COMMANDS.iter().map(|c| &c.0[1..]).collect();
-                let hint =
-                    gwml::compiler::diagnostics::did_you_mean(other, names).map(|s| format!("; did you mean :{s}?")).unwrap_or_default();
+                let hint = gwml::compiler::front::diagnostics::did_you_mean(other, names)
+                    .map(|s| format!("; did you mean :{s}?"))
+                    .unwrap_or_default();
                 return Err(format!("error: unknown command :{other}{hint} (:help lists them)\n"));
             }
         }

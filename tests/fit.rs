@@ -4,7 +4,7 @@
 //! Fisher-matrix uncertainty.
 
 use gwml::{Model, Scene, Value};
-use gwml_runtime::fit::{fit_run, Optimizer, SceneFit, Settings};
+use gwml_runtime::fit::{fit_run, Algorithm, SceneFit, Settings};
 use gwml_runtime::noise;
 use num_complex::Complex64 as C64;
 use std::process::Command;
@@ -43,7 +43,7 @@ fn fit(scene: &Scene, d: &[C64]) -> SceneFit {
     for (n, v) in START {
         run.param(n, v).unwrap();
     }
-    fit_run(&mut run, None, &Settings::new(Optimizer::Lbfgs), |_| {}).unwrap()
+    fit_run(&mut run, None, &Settings::new(Algorithm::Lbfgs), |_| {}).unwrap()
 }
 
 #[test]

@@ -423,3 +423,14 @@ fn layer_on_a_value_with_units() {
     assert_reports(&err, "`dense` needs a dimensionless real array here");
     insta::assert_snapshot!(err.render(false));
 }
+
+#[test]
+fn unknown_precision_and_math_settings_name_the_valid_spellings() {
+    let err = fail("scene s {\n    precision: f16\n    math: quick\n    output y = 1.0\n}\n");
+    assert_reports(&err, "unknown precision `f16`");
+    assert_reports(&err, "unknown math mode `quick`");
+    assert_helps(&err, "f64, f32 or mixed");
+    assert_helps(&err, "exact");
+    let spans: Vec<&str> = err.diagnostics.iter().map(|d| &err.sources.get(d.span.file).text[d.span.start..d.span.end]).collect();
+    assert_eq!(spans, ["f16", "quick"]);
+}

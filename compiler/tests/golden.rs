@@ -5,9 +5,9 @@
 //! Regenerate with `INSTA_UPDATE=always cargo test -p gwml-compiler --test golden`
 //! and review every changed `.snap` file.
 
+use gwml_compiler::front::source::FileId;
+use gwml_compiler::front::syntax::{parse, print_ast};
 use gwml_compiler::ir::{Function, Op, UnOp, Value};
-use gwml_compiler::source::FileId;
-use gwml_compiler::syntax::{parse, print_ast};
 use gwml_compiler::{Program, ScenePipeline};
 use std::collections::HashSet;
 

@@ -9,8 +9,8 @@
 //! Every formula is wrapped in a tiny scene with params `x` and `y` and a
 //! four-point grid `g` (1, 2, 3, 4 Hz).
 
-use gwml_compiler::interp::{self, Tensor};
 use gwml_compiler::ir::{BinOp, Elem, Function, Op, Reduce, UnOp, Value};
+use gwml_compiler::kernels::interp::{self, Tensor};
 use gwml_compiler::{Program, ScenePipeline};
 use num_complex::Complex64 as C64;
 
@@ -193,7 +193,7 @@ fn cs_unary(u: UnOp, z: C64) -> Result<C64, String> {
         UnOp::Tan => z.sin() / z.cos(),
         UnOp::Tanh => cs_tanh(z),
         // Locally constant.
-        UnOp::Sign => C64::new(gwml_compiler::eval::sign(z.re), 0.0),
+        UnOp::Sign => C64::new(gwml_compiler::ir::eval::sign(z.re), 0.0),
         other => return Err(format!("unary {other:?} is not real-analytic")),
     })
 }

@@ -5,7 +5,7 @@
 //!
 //! Regenerate the snapshots with `INSTA_UPDATE=always cargo test -p gwml-compiler --test knobs`.
 
-use gwml_compiler::interp;
+use gwml_compiler::kernels::interp;
 use gwml_compiler::{Options, PipelineError, Program};
 
 const SCENE: &str = "module scaled(x, k = 1.0) {

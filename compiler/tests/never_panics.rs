@@ -6,10 +6,10 @@
 //! verifies the IR after every pass in debug builds).
 
 use gwml_compiler::check::CONSTANTS;
-use gwml_compiler::source::FileId;
-use gwml_compiler::syntax::ast::{BinOp, Expr, ExprKind, Item, SceneStmt, UnitExpr};
-use gwml_compiler::syntax::{parse, print_ast};
-use gwml_compiler::{units, Program};
+use gwml_compiler::front::source::FileId;
+use gwml_compiler::front::syntax::ast::{BinOp, Expr, ExprKind, Item, SceneStmt, UnitExpr};
+use gwml_compiler::front::syntax::{parse, print_ast};
+use gwml_compiler::{front::units, Program};
 use proptest::prelude::*;
 use proptest::sample::{select, Index};
 

@@ -1,7 +1,7 @@
 //! `Options::outputs`: compiling a subset of a scene's outputs (what
 //! `gwml tradeoff` times value-and-gradient with).
 
-use gwml_compiler::interp;
+use gwml_compiler::kernels::interp;
 use gwml_compiler::{Options, Program};
 
 const SCENE: &str = "scene s {

@@ -221,7 +221,7 @@ impl Dataset {
     pub fn get(&self, name: &str) -> Result<&Array, Error> {
         self.arrays.get(name).ok_or_else(|| {
             let names: Vec<&str> = self.arrays.keys().map(String::as_str).collect();
-            let hint = gwml_compiler::diagnostics::did_you_mean(name, names.iter().copied())
+            let hint = gwml_compiler::front::diagnostics::did_you_mean(name, names.iter().copied())
                 .map(|s| format!(" (did you mean `{s}`?)"))
                 .unwrap_or_default();
             let have =

@@ -23,7 +23,7 @@ pub mod synth;
 pub mod train;
 
 use gwml_compiler::codegen::{self, BufferKind, Kernel};
-use gwml_compiler::diagnostics::did_you_mean;
+use gwml_compiler::front::diagnostics::did_you_mean;
 use gwml_compiler::ir::{Elem, Function, Precision, Shape};
 use gwml_compiler::{CompileError, Options, PipelineError, Program, ScenePipeline};
 use num_complex::Complex64 as C64;

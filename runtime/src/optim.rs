@@ -359,6 +359,15 @@ impl Optimizer {
         }
     }
 
+    /// Scales the first moment (momentum) by `factor`, as an optimiser does
+    /// after undoing a step that led somewhere the loss is not finite
+    /// (`fit::minimize`'s Adam halves it).
+    pub fn damp_first_moment(&mut self, factor: f64) {
+        for m in &mut self.first {
+            *m *= factor;
+        }
+    }
+
     /// A copy of the step count and moment buffers, for a checkpoint.
     pub fn state(&self) -> OptimState {
         OptimState { step: self.step, first_moment: self.first.clone(), second_moment: self.second.clone() }

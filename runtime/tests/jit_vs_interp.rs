@@ -1,8 +1,8 @@
 //! Differential tests: the JIT kernels agree with the reference interpreter
-//! (`gwml_compiler::interp`), on the examples and on random programs.
+//! (`gwml_compiler::kernels::interp`), on the examples and on random programs.
 
-use gwml_compiler::interp;
 use gwml_compiler::ir::{MathMode, Precision};
+use gwml_compiler::kernels::interp;
 use gwml_compiler::Options;
 use gwml_runtime::{Model, Value};
 use proptest::prelude::*;

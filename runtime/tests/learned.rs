@@ -4,7 +4,7 @@
 //! the JIT's forward kernel, in f64; the JIT against the reference
 //! interpreter; and the extremes (logits of ±1e4, pooling ties).
 
-use gwml_compiler::interp;
+use gwml_compiler::kernels::interp;
 use gwml_runtime::{Model, Outputs, Value};
 use num_complex::Complex64 as C64;
 

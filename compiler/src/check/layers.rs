@@ -7,12 +7,12 @@
 //! over a physical grid (a time series) is one channel.
 
 use super::{Checker, Scope, Tv};
-use crate::builder::Builder;
-use crate::diagnostics::{did_you_mean, Diagnostic};
+use crate::front::diagnostics::{did_you_mean, Diagnostic};
+use crate::front::source::{Span, Spanned};
+use crate::front::syntax::ast::{self, Expr, ExprKind, ModuleDef, WeightDecl};
+use crate::front::units::Dim;
+use crate::ir::builder::Builder;
 use crate::ir::{self, Conv, Elem, GridId, InputRole, Op, Pool, Rows, Shape, TensorOp, Ty};
-use crate::source::{Span, Spanned};
-use crate::syntax::ast::{self, Expr, ExprKind, ModuleDef, WeightDecl};
-use crate::units::Dim;
 use num_complex::Complex64 as C64;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};

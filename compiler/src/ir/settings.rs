@@ -120,3 +120,28 @@ impl FromStr for MathMode {
         parse_setting(&MathMode::ALL, s, "math mode", "exact (libm accuracy), fast (~1e-12) or fastest (~1e-7)")
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_setting_parses_from_the_name_it_prints() {
+        for p in Precision::ALL {
+            assert_eq!(p.to_string().parse::<Precision>(), Ok(p));
+        }
+        for m in MathMode::ALL {
+            assert_eq!(m.to_string().parse::<MathMode>(), Ok(m));
+        }
+    }
+
+    #[test]
+    fn an_unknown_spelling_names_the_valid_ones() {
+        let e = "f16".parse::<Precision>().unwrap_err();
+        assert_eq!(e.to_string(), "unknown precision `f16`");
+        assert!(e.help.contains("f64") && e.help.contains("f32") && e.help.contains("mixed"), "{}", e.help);
+        let e = "Fast".parse::<MathMode>().unwrap_err();
+        assert_eq!(e.to_string(), "unknown math mode `Fast`");
+        assert!(e.help.contains("fastest"), "{}", e.help);
+    }
+}
