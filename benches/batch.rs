@@ -22,8 +22,8 @@
 //! Lines starting with `gwml_` are machine-readable (`name value`).
 
 use gwml::batch::{Batch, Mode};
-use gwml::timing::median_us;
 use gwml::{Model, Outputs, Scene, Value};
+use gwml_lab::timing::median_us;
 use num_complex::Complex64 as C64;
 use std::hint::black_box;
 

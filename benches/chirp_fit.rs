@@ -9,7 +9,7 @@
 #[path = "../tests/common/chirp_reference.rs"]
 mod reference;
 
-use gwml::timing::median_us;
+use gwml_lab::timing::median_us;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::hint::black_box;
 use std::sync::atomic::{AtomicUsize, Ordering};

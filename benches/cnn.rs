@@ -4,9 +4,9 @@
 //! - `burst`: the small burst-detection CNN of `examples/burst_cnn.gw`
 //!   (input 256 samples, conv 8×1×16 + ReLU, max pool 4, conv 16×8×8 +
 //!   ReLU, global max pool, dense 2×16, cross-entropy), in f64 (the
-//!   scene's own precision) and f32, on `gwml_runtime::synth::bursts` data;
+//!   scene's own precision) and f32, on `gwml_lab::synth::bursts` data;
 //! - `glitch`: `benches/glitch_cnn.gw`, the glitch experiment's first CNN
-//!   (its `examples/glitch/cnn.gw` is now wider), the shape issue #4
+//!   (its `lab/models/glitch/cnn.gw` is now wider), the shape issue #4
 //!   names (input 4,096 samples, four convolutions of 8–32
 //!   channels with kernels of 16 and 8, ReLU, max pooling, a dense head of
 //!   6 classes), in f32 (the scene's own precision) and f64, on unit white
@@ -30,12 +30,12 @@
 //!
 //! Lines starting with `gwml_` are machine-readable (`name value`).
 
-use gwml::timing::median_us;
 use gwml_compiler::driver::Options;
 use gwml_compiler::ir::Precision;
+use gwml_lab::synth::{bursts, BurstOptions};
+use gwml_lab::timing::median_us;
 use gwml_runtime::dataset::{Array, Dataset};
 use gwml_runtime::optim::{Method, OptimConfig, Schedule};
-use gwml_runtime::synth::{bursts, BurstOptions};
 use gwml_runtime::train::{TrainOptions, Trainer};
 use gwml_runtime::Model;
 use rand::{Rng, SeedableRng};

@@ -26,8 +26,8 @@
 //! Lines starting with `gwml_` are machine-readable (`name value`), read by
 //! `benches/peers/peers.py`.
 
-use gwml::timing::median_us;
 use gwml::{Model, Value};
+use gwml_lab::timing::median_us;
 use std::hint::black_box;
 use std::time::Instant;
 

@@ -24,7 +24,7 @@ mkdir -p "$out"
 # heap objects baked into the IR as 48-bit constants; they change from run
 # to run, so they are written as 0xHEAP.
 heap_address='s/0x[0-9a-f]{4}_[0-9a-f]{4}_[0-9a-f]{4}\b/0xHEAP/g'
-for file in examples/*.gw examples/glitch/*.gw benches/*.gw; do
+for file in examples/*.gw lab/models/glitch/*.gw benches/*.gw; do
     model=$(echo "${file%.gw}" | tr / _)
     "$gwml" compile "$file" --emit ast >"$out/$model.ast" 2>&1
     for scene in $(sed -n 's/^scene \([A-Za-z_][A-Za-z0-9_]*\).*/\1/p' "$file"); do

@@ -10,10 +10,7 @@ use std::path::Path;
 use std::time::Instant;
 
 pub(crate) fn render(e: Error) -> String {
-    match e {
-        Error::Compile(c) => c.render(std::io::stderr().is_terminal()),
-        other => format!("error: {other}"),
-    }
+    e.render(std::io::stderr().is_terminal())
 }
 
 /// Splits `NAME=VALUE` at its first `=` (both sides trimmed, neither empty).
@@ -462,7 +459,7 @@ fn num(x: f64) -> String {
 
 /// `gwml tradeoff`.
 pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
-    use gwml::tradeoff::{all_configs, csv, sweep, table, with_knob_sweeps, Config, Settings};
+    use gwml_lab::tradeoff::{all_configs, csv, sweep, table, with_knob_sweeps, Config, Settings};
     let model = Model::from_file(&a.file).map_err(render)?;
     let configs: Vec<Config> = all_configs()
         .into_iter()
@@ -532,7 +529,7 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
     }
     if let Some(p) = &a.plot {
         let points: Vec<(f64, f64, String, bool)> = rows.iter().map(|r| (r.time_us(), r.error(), r.config.label(), r.pareto)).collect();
-        crate::plot::scatter_loglog(
+        gwml_lab::plot::scatter_loglog(
             p,
             "time against error (red: Pareto-optimal)",
             "time per call (µs)",

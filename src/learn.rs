@@ -7,9 +7,10 @@ use crate::{DataArgs, DataKind, PredictArgs, ScheduleArg, TrainArgs, TrainOptimi
 use gwml::runtime::checkpoint;
 use gwml::runtime::dataset::{self, Array, Dataset};
 use gwml::runtime::optim::{Method, OptimConfig, Schedule};
-use gwml::runtime::synth::{bursts, glitches, BurstOptions, GlitchOptions, GLITCH_CLASSES, KOI_FISH_LOUDNESS};
 use gwml::runtime::train::{EpochReport, TrainOptions, Trainer};
 use gwml::{Model, Value};
+use gwml_lab::parse_range;
+use gwml_lab::synth::{bursts, glitches, BurstOptions, GlitchOptions, GLITCH_CLASSES, KOI_FISH_LOUDNESS};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use std::time::Instant;
@@ -112,7 +113,7 @@ pub fn train(a: TrainArgs) -> Result<(), String> {
         let xs: Vec<f64> = reports.iter().map(|r| r.epoch as f64).collect();
         let train_loss: Vec<f64> = reports.iter().map(|r| r.train_loss).collect();
         let val_loss: Vec<f64> = reports.iter().map(|r| r.val.map_or(f64::NAN, |m| m.loss)).collect();
-        crate::plot::lines_plot(path, "training", "epoch", &a.loss, &[("train", &xs, &train_loss), ("validation", &xs, &val_loss)])?;
+        gwml_lab::plot::lines_plot(path, "training", "epoch", &a.loss, &[("train", &xs, &train_loss), ("validation", &xs, &val_loss)])?;
         println!("wrote {}", path.display());
     }
     Ok(())
@@ -231,10 +232,4 @@ pub fn data(a: DataArgs) -> Result<(), String> {
         }
     }
     Ok(())
-}
-
-pub(crate) fn parse_range(s: &str) -> Result<(f64, f64), String> {
-    let bad = || format!("error: expected a range LO..HI, got `{s}`");
-    let (lo, hi) = s.split_once("..").ok_or_else(bad)?;
-    Ok((lo.trim().parse().map_err(|_| bad())?, hi.trim().parse().map_err(|_| bad())?))
 }

@@ -14,9 +14,6 @@
 //! The compiler lives in [`compiler`] (re-exported `gwml-compiler`), the
 //! runtime types at the crate root (re-exported `gwml-runtime`).
 
-pub mod timing;
-pub mod tradeoff;
-
 pub use gwml_compiler as compiler;
 pub use gwml_runtime as runtime;
 pub use gwml_runtime::{batch, npy, spectrum, Error, Model, Outputs, Run, Scene, Value};

@@ -1,14 +1,14 @@
 //! The `gwml` command-line tool.
 
 mod commands;
-mod experiment;
-mod generator;
 mod learn;
-mod plot;
 mod repl;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use gwml::compiler::ir::{MathMode, Precision, UnknownSetting};
+use gwml_lab::experiment;
+use gwml_lab::generator::{self, GeneratorCommand};
+use gwml_lab::synth::GlitchClass;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -370,97 +370,6 @@ pub struct DataArgs {
     /// The .npz file to write.
     #[arg(long, value_name = "PATH.npz")]
     pub out: PathBuf,
-}
-
-/// The classes of `gwml data glitch`, in label order.
-#[derive(Clone, Copy, ValueEnum)]
-pub enum GlitchClass {
-    /// Noise alone (label 0).
-    None,
-    /// Blip (label 1).
-    Blip,
-    /// Koi Fish (label 2).
-    KoiFish,
-    /// Whistle (label 3).
-    Whistle,
-    /// Scratchy (label 4).
-    Scratchy,
-    /// A binary chirp (label 5).
-    Chirp,
-}
-
-impl GlitchClass {
-    /// The label, an index into `gwml_runtime::synth::GLITCH_CLASSES`.
-    pub fn label(self) -> usize {
-        self as usize
-    }
-}
-
-/// `gwml generator` subcommands.
-#[derive(Subcommand)]
-pub enum GeneratorCommand {
-    /// Fit a generator of one glitch family: estimate each example's shape
-    /// params, time and SNR by matched filtering with L-BFGS, then fit a
-    /// multivariate normal over them. Writes the generator as JSON.
-    Fit(GeneratorFitArgs),
-    /// Draw whitened glitches from a fitted generator into an .npz (`x`,
-    /// n × 4096, and one array per drawn param).
-    Sample(GeneratorSampleArgs),
-}
-
-#[derive(clap::Args)]
-pub struct GeneratorFitArgs {
-    /// The glitch family to model (blip, koi-fish, whistle or scratchy).
-    #[arg(long, value_enum)]
-    pub family: GlitchClass,
-    /// Example glitches: an .npz with `x` (rows of 4096 whitened samples at
-    /// 4096 Hz; with a `label` array, only the family's rows are used) or an
-    /// .npy of such rows [default: draw --n examples of the family as
-    /// `gwml data glitch --class FAMILY --koi-fish-loudness 1` does].
-    #[arg(long, value_name = "PATH")]
-    pub examples: Option<PathBuf>,
-    /// Examples to draw when --examples is not given.
-    #[arg(long, default_value_t = 200)]
-    pub n: usize,
-    /// Seed of the drawn examples.
-    #[arg(long, default_value_t = 11)]
-    pub seed: u64,
-    /// SNR range of the drawn examples (Koi Fish included).
-    #[arg(long, default_value = "15..40")]
-    pub snr: String,
-    /// Where to write the generator.
-    #[arg(long, value_name = "PATH.json")]
-    pub out: PathBuf,
-    /// Plot the examples' estimates and the generator's draws of the first
-    /// two shape params as a PNG.
-    #[arg(long, value_name = "PATH.png")]
-    pub plot: Option<PathBuf>,
-    /// Worker threads [default: all cores].
-    #[arg(long)]
-    pub threads: Option<usize>,
-}
-
-#[derive(clap::Args)]
-pub struct GeneratorSampleArgs {
-    /// A generator written by `gwml generator fit`.
-    #[arg(long, value_name = "PATH.json")]
-    pub model: PathBuf,
-    /// Glitches to draw.
-    #[arg(long, default_value_t = 6)]
-    pub n: usize,
-    /// Seed: the same seed draws the same glitches.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Add unit-variance white noise (whitened detector noise), as in
-    /// `gwml data glitch`.
-    #[arg(long)]
-    pub noise: bool,
-    /// Where to write the draws.
-    #[arg(long, value_name = "PATH.npz")]
-    pub out: PathBuf,
-    /// Plot the first (up to six) draws as a PNG.
-    #[arg(long, value_name = "PATH.png")]
-    pub plot: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]

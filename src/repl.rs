@@ -462,7 +462,7 @@ impl Repl {
                 let grid = f.grid(g);
                 let xs: Vec<f64> = (0..grid.len).map(|i| grid.start + i as f64 * grid.step).collect();
                 let y_label = if o.unit == "1" { expr.trim().to_string() } else { format!("{} [{}]", expr.trim(), o.unit) };
-                crate::plot::line_plot(
+                gwml_lab::plot::line_plot(
                     std::path::Path::new(file.trim()),
                     expr.trim(),
                     &format!("{} [{}]", grid.name, grid.unit),

@@ -8,8 +8,8 @@
 
 use gwml::compiler::ir::{MathMode, Precision};
 use gwml::compiler::Options;
-use gwml::tradeoff::mismatch;
 use gwml::{Model, Value};
+use gwml_lab::tradeoff::mismatch;
 
 const SOURCE: &str = "use std::taylorf2::{tf2_strain, tf2_psi_pn}
 use std::detector::{inner}

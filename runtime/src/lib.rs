@@ -19,7 +19,6 @@ pub mod noise;
 pub mod npy;
 pub mod optim;
 pub mod spectrum;
-pub mod synth;
 pub mod train;
 
 use gwml_compiler::codegen::{self, BufferKind, Kernel};
@@ -78,6 +77,17 @@ impl fmt::Display for Error {
                 Ok(())
             }
             Error::Item { index, error } => write!(f, "batch item {index}: {error}"),
+        }
+    }
+}
+
+impl Error {
+    /// The error as a command line prints it: a compile error with its
+    /// source spans (in colour when `color`), anything else after `error: `.
+    pub fn render(&self, color: bool) -> String {
+        match self {
+            Error::Compile(c) => c.render(color),
+            other => format!("error: {other}"),
         }
     }
 }

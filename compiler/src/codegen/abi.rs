@@ -73,6 +73,23 @@ pub struct Layout {
     pub input_grads: Vec<Option<usize>>,
 }
 
+impl Layout {
+    /// A layout with no buffers, slots or loops yet, for a kernel in `precision`.
+    pub(super) fn empty(precision: Precision) -> Layout {
+        Layout {
+            buffers: Vec::new(),
+            scalars: Vec::new(),
+            scalar_slots: 0,
+            loops: 0,
+            split_loops: 0,
+            sums_skipped: 0,
+            precision,
+            outputs: Vec::new(),
+            input_grads: Vec::new(),
+        }
+    }
+}
+
 /// Code generation failed (a compiler bug or an unsupported target).
 #[derive(Clone, Debug)]
 pub struct CodegenError(pub String);

@@ -94,17 +94,7 @@ fn compile_with(func: &Function, disasm: bool) -> Result<(Kernel, Option<String>
         ctx.func.signature.params.push(AbiParam::new(ptr));
     }
     let id = module.declare_function("gwml_kernel", Linkage::Export, &ctx.func.signature).map_err(|e| err(&e))?;
-    let mut layout = Layout {
-        buffers: Vec::new(),
-        scalars: Vec::new(),
-        scalar_slots: 0,
-        loops: 0,
-        split_loops: 0,
-        sums_skipped: 0,
-        precision: func.precision,
-        outputs: Vec::new(),
-        input_grads: Vec::new(),
-    };
+    let mut layout = Layout::empty(func.precision);
     let storage = func.precision.storage();
     let wide = crate::passes::precision::wide_values(func);
     for (i, input) in func.inputs.iter().enumerate() {

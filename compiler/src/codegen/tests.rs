@@ -14,17 +14,7 @@ fn optimized(src: &str, scene: &str) -> Function {
 
 /// The schedule of `func`, with the buffers it adds to an empty layout.
 fn schedule_of(func: &Function) -> (Schedule, Layout) {
-    let mut layout = Layout {
-        buffers: Vec::new(),
-        scalars: Vec::new(),
-        scalar_slots: 0,
-        loops: 0,
-        split_loops: 0,
-        sums_skipped: 0,
-        precision: func.precision,
-        outputs: Vec::new(),
-        input_grads: Vec::new(),
-    };
+    let mut layout = Layout::empty(func.precision);
     let mut plans: Vec<PlanBox> = Vec::new();
     let sched = schedule(func, &crate::passes::precision::wide_values(func), &mut layout, &mut plans);
     (sched, layout)

@@ -152,6 +152,13 @@ impl<F, E> InU<'_, F>
 where
     F: FnMut(&[f64]) -> Result<(f64, Vec<f64>), E>,
 {
+    /// The result when the loss is not finite at the start `u`: nothing to
+    /// do but report it.
+    fn not_finite_at(&self, u: &[f64]) -> Minimum {
+        let n = u.len();
+        Minimum { x: self.x(u), loss: f64::NAN, grad: vec![f64::NAN; n], steps: 0, evaluations: self.evaluations, stop: Stop::Steps }
+    }
+
     fn x(&self, u: &[f64]) -> Vec<f64> {
         self.transforms.iter().zip(u).map(|(t, u)| t.to_x(*u)).collect()
     }
@@ -206,14 +213,9 @@ fn lbfgs<F, E>(obj: &mut InU<'_, F>, mut u: Vec<f64>, s: &Settings, progress: &m
 where
     F: FnMut(&[f64]) -> Result<(f64, Vec<f64>), E>,
 {
-    let n = u.len();
     let (mut l, mut g, mut gx) = match start(obj, &u)? {
         Ok(v) => v,
-        Err(()) => {
-            // Not finite at the start: nothing to do but report it.
-            let x = obj.x(&u);
-            return Ok(Minimum { x, loss: f64::NAN, grad: vec![f64::NAN; n], steps: 0, evaluations: obj.evaluations, stop: Stop::Steps });
-        }
+        Err(()) => return Ok(obj.not_finite_at(&u)),
     };
     let mut mem: VecDeque<(Vec<f64>, Vec<f64>, f64)> = VecDeque::new();
     let mut small_changes = 0;
@@ -344,10 +346,7 @@ where
     let n = u.len();
     let (mut l, mut g, mut gx) = match start(obj, &u)? {
         Ok(v) => v,
-        Err(()) => {
-            let x = obj.x(&u);
-            return Ok(Minimum { x, loss: f64::NAN, grad: vec![f64::NAN; n], steps: 0, evaluations: obj.evaluations, stop: Stop::Steps });
-        }
+        Err(()) => return Ok(obj.not_finite_at(&u)),
     };
     // The update rule is the trainer's Adam (Kingma & Ba 2015, PyTorch's
     // defaults), with a cosine decay from the learning rate to 1/1000 of it

@@ -2,8 +2,8 @@
 //! equals an uninterrupted one bit for bit, and a physics param trains
 //! together with network weights.
 
+use gwml_lab::synth::{bursts, BurstOptions};
 use gwml_runtime::optim::{Method, OptimConfig, Schedule};
-use gwml_runtime::synth::{bursts, BurstOptions};
 use gwml_runtime::train::{TrainOptions, Trainer};
 use gwml_runtime::Model;
 

@@ -1,13 +1,13 @@
 //! `gwml experiment glitch`: the reference experiment of the glitch
 //! pipeline. Three classifiers see the same synthetic data
-//! ([`gwml::runtime::synth::glitches`]: whitened 1 s segments of six
+//! ([`crate::synth::glitches`]: whitened 1 s segments of six
 //! classes) and are scored on the same test sets:
 //!
 //! 1. [`rules::RuleClassifier`]: a fixed matched-filter bank with tuned
-//!    thresholds (`examples/glitch/bank.gw`), no gradient training;
-//! 2. a 1-D CNN on the whitened strain (`examples/glitch/cnn.gw`);
+//!    thresholds (`lab/models/glitch/bank.gw`), no gradient training;
+//! 2. a 1-D CNN on the whitened strain (`lab/models/glitch/cnn.gw`);
 //! 3. the differentiable model: a trainable template bank feeding a small
-//!    network, trained end to end (`examples/glitch/template_net.gw`).
+//!    network, trained end to end (`lab/models/glitch/template_net.gw`).
 //!
 //! Training sets of several sizes (prefixes of one seed's draw) give the
 //! learning curves; validation, test and the two shifted test sets (lower
@@ -18,13 +18,13 @@
 pub mod metrics;
 pub mod rules;
 
-use crate::commands::render;
 use crate::plot;
-use gwml::runtime::dataset::Dataset;
-use gwml::runtime::optim::{Method, OptimConfig, Schedule};
-use gwml::runtime::synth::{glitches, GlitchOptions, GLITCH_CLASSES};
-use gwml::runtime::train::{TrainOptions, Trainer};
-use gwml::Model;
+use crate::render;
+use crate::synth::{glitches, GlitchOptions, GLITCH_CLASSES};
+use gwml_runtime::dataset::Dataset;
+use gwml_runtime::optim::{Method, OptimConfig, Schedule};
+use gwml_runtime::train::{TrainOptions, Trainer};
+use gwml_runtime::Model;
 use indicatif::{ProgressBar, ProgressStyle};
 use metrics::{csv_table, markdown_table, percent, Confusion};
 use std::fmt::Write as _;
@@ -32,9 +32,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The CNN of method 2.
-const CNN_SOURCE: &str = include_str!("../../examples/glitch/cnn.gw");
+const CNN_SOURCE: &str = include_str!("../../models/glitch/cnn.gw");
 /// The differentiable model of method 3.
-const TEMPLATE_NET_SOURCE: &str = include_str!("../../examples/glitch/template_net.gw");
+const TEMPLATE_NET_SOURCE: &str = include_str!("../../models/glitch/template_net.gw");
 
 /// Classes scored in the macro averages: every class but None.
 const GLITCH_LIKE: [usize; 5] = [1, 2, 3, 4, 5];
@@ -223,7 +223,7 @@ fn run_learner(l: &Learner, plan: &Plan, train: &Dataset, val: &Dataset, tests: 
     let t0 = Instant::now();
     let n = train.examples().map_err(render)?;
     let epochs = plan.epochs(n, l.batch);
-    let model = Model::from_source(&format!("examples/glitch/{}.gw", l.key), l.source).map_err(render)?;
+    let model = Model::from_source(&format!("lab/models/glitch/{}.gw", l.key), l.source).map_err(render)?;
     let scene = model.scene(None).map_err(render)?;
     let steps_per_epoch = n.div_ceil(l.batch) as u64;
     let opts = TrainOptions {

@@ -2,7 +2,7 @@
 //! (issue #7).
 //!
 //! Fitting is two stages. First, each example glitch is an inverse problem:
-//! the family's scene in `examples/glitch/generator.gw` matches the family's
+//! the family's scene in `lab/models/glitch/generator.gw` matches the family's
 //! whitened shape against the example and gives the peak matched-filter SNR
 //! over time shifts; L-BFGS ([`gwml_runtime::fit`]) maximises it over the
 //! shape params, by gradients through the physics, from the best of a grid
@@ -14,17 +14,17 @@
 //! likelihood estimates, so correlations between params are kept.
 //!
 //! Sampling draws from that normal, maps back to params, and draws each
-//! glitch through [`gwml_runtime::synth::unit_signal`], the same whitened
+//! glitch through [`crate::synth::unit_signal`], the same whitened
 //! shapes `gwml data glitch` draws, with a uniformly random phase (the fit is
 //! blind to phase).
 
-use crate::commands::render;
-use crate::learn::parse_range;
+use crate::parse_range;
 use crate::plot::{lines_plot, scatter_plot};
-use crate::{GeneratorFitArgs, GeneratorSampleArgs};
+use crate::render;
+use crate::synth::GlitchClass;
+use crate::synth::{glitches, unit_signal, GlitchOptions, GlitchSignals, GLITCH_CLASSES};
 use gwml_runtime::dataset::{self, Array, Dataset};
 use gwml_runtime::fit::{self, Algorithm, Settings};
-use gwml_runtime::synth::{glitches, unit_signal, GlitchOptions, GlitchSignals, GLITCH_CLASSES};
 use gwml_runtime::{Error, Model, Run, Scene, Value};
 use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::{DMatrix, DVector};
@@ -33,10 +33,78 @@ use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// The generator's inverse problems, one scene per glitch family.
-pub const GENERATOR_SOURCE: &str = include_str!("../examples/glitch/generator.gw");
+pub const GENERATOR_SOURCE: &str = include_str!("../models/glitch/generator.gw");
+
+/// `gwml generator` subcommands.
+#[derive(clap::Subcommand)]
+pub enum GeneratorCommand {
+    /// Fit a generator of one glitch family: estimate each example's shape
+    /// params, time and SNR by matched filtering with L-BFGS, then fit a
+    /// multivariate normal over them. Writes the generator as JSON.
+    Fit(GeneratorFitArgs),
+    /// Draw whitened glitches from a fitted generator into an .npz (`x`,
+    /// n × 4096, and one array per drawn param).
+    Sample(GeneratorSampleArgs),
+}
+
+#[derive(clap::Args)]
+pub struct GeneratorFitArgs {
+    /// The glitch family to model (blip, koi-fish, whistle or scratchy).
+    #[arg(long, value_enum)]
+    pub family: GlitchClass,
+    /// Example glitches: an .npz with `x` (rows of 4096 whitened samples at
+    /// 4096 Hz; with a `label` array, only the family's rows are used) or an
+    /// .npy of such rows [default: draw --n examples of the family as
+    /// `gwml data glitch --class FAMILY --koi-fish-loudness 1` does].
+    #[arg(long, value_name = "PATH")]
+    pub examples: Option<PathBuf>,
+    /// Examples to draw when --examples is not given.
+    #[arg(long, default_value_t = 200)]
+    pub n: usize,
+    /// Seed of the drawn examples.
+    #[arg(long, default_value_t = 11)]
+    pub seed: u64,
+    /// SNR range of the drawn examples (Koi Fish included).
+    #[arg(long, default_value = "15..40")]
+    pub snr: String,
+    /// Where to write the generator.
+    #[arg(long, value_name = "PATH.json")]
+    pub out: PathBuf,
+    /// Plot the examples' estimates and the generator's draws of the first
+    /// two shape params as a PNG.
+    #[arg(long, value_name = "PATH.png")]
+    pub plot: Option<PathBuf>,
+    /// Worker threads [default: all cores].
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+#[derive(clap::Args)]
+pub struct GeneratorSampleArgs {
+    /// A generator written by `gwml generator fit`.
+    #[arg(long, value_name = "PATH.json")]
+    pub model: PathBuf,
+    /// Glitches to draw.
+    #[arg(long, default_value_t = 6)]
+    pub n: usize,
+    /// Seed: the same seed draws the same glitches.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Add unit-variance white noise (whitened detector noise), as in
+    /// `gwml data glitch`.
+    #[arg(long)]
+    pub noise: bool,
+    /// Where to write the draws.
+    #[arg(long, value_name = "PATH.npz")]
+    pub out: PathBuf,
+    /// Plot the first (up to six) draws as a PNG.
+    #[arg(long, value_name = "PATH.png")]
+    pub plot: Option<PathBuf>,
+}
 
 /// Samples per whitened example (1 s at 4096 Hz).
 pub const SAMPLES: usize = 4096;
@@ -47,7 +115,7 @@ const SAMPLE_RATE: f64 = 4096.0;
 /// A glitch family the generator models.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Family {
-    /// Its scene in `examples/glitch/generator.gw`.
+    /// Its scene in `lab/models/glitch/generator.gw`.
     pub scene: &'static str,
     /// Its class index in [`GLITCH_CLASSES`].
     pub class: usize,
@@ -413,9 +481,9 @@ impl Generator {
     }
 }
 
-/// Checks the generator's model (`examples/glitch/generator.gw`, one scene per family).
+/// Checks the generator's model (`lab/models/glitch/generator.gw`, one scene per family).
 pub fn family_model() -> Result<Model, Error> {
-    Model::from_source("examples/glitch/generator.gw", GENERATOR_SOURCE)
+    Model::from_source("lab/models/glitch/generator.gw", GENERATOR_SOURCE)
 }
 
 /// The example rows of a dataset file: `x`, cut to the family's rows when a

@@ -10,7 +10,7 @@ static FONT: Once = Once::new();
 
 fn register_font() {
     FONT.call_once(|| {
-        // DejaVu Sans (Bitstream Vera license, assets/fonts/LICENSE-DejaVu.txt).
+        // DejaVu Sans (Bitstream Vera license, lab/assets/fonts/LICENSE-DejaVu.txt).
         let bytes: &'static [u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, bytes);
     });

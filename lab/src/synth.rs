@@ -15,8 +15,8 @@
 //! `τ = Q / (√2 π f0)`, scaled so its optimal signal-to-noise ratio in
 //! unit-variance white noise, `√(Σ h²)`, is the drawn SNR.
 
-use crate::dataset::{Array, Dataset};
-use crate::{Error, Value};
+use gwml_runtime::dataset::{Array, Dataset};
+use gwml_runtime::{Error, Value};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::collections::BTreeMap;
@@ -90,61 +90,48 @@ pub fn bursts(o: &BurstOptions) -> Result<Dataset, Error> {
     Ok(Dataset { arrays })
 }
 
+/// The classes of `gwml data glitch`, in label order.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum GlitchClass {
+    /// Noise alone (label 0).
+    None,
+    /// Blip (label 1).
+    Blip,
+    /// Koi Fish (label 2).
+    KoiFish,
+    /// Whistle (label 3).
+    Whistle,
+    /// Scratchy (label 4).
+    Scratchy,
+    /// A binary chirp (label 5).
+    Chirp,
+}
+
+impl GlitchClass {
+    /// The label, an index into [`GLITCH_CLASSES`].
+    pub fn label(self) -> usize {
+        self as usize
+    }
+}
+
 /// Class labels of [`glitches`], in label order.
 pub const GLITCH_CLASSES: &[&str] = &["None", "Blip", "Koi Fish", "Whistle", "Scratchy", "Chirp"];
 
 /// The scene that draws one whitened signal of any class (`class` selects).
-const GLITCH_SCENE: &str = "use std::glitch::{blip, koi_fish, whistle, scratchy}
-use std::taylorf2::{tf2_strain_td}
-use std::detector::{whiten, band}
-use std::psd::{psd_aligo_zerodet_highpower}
-scene glitch {
-    grid t = times(rate: 4096 Hz, duration: 1 s)
-    grid f = spectrum(t)
-    param class = 1.0
-    param t0: s = 0.5
-    param f0: Hz = 150.0
-    param q = 3.0
-    param f_head: Hz = 30.0
-    param head = 0.2
-    param lead: s = 0.02
-    param f_min: Hz = 600.0
-    param f_max: Hz = 1000.0
-    param half: s = 0.2
-    param rate: Hz = 18.0
-    param duration: s = 0.6
-    param mc: Msun = 25.0
-    param mass_ratio = 0.8
-    param tc: s = 0.9
-    param phi = 0.0
-    let h = select(class < 1.5, blip(t, t0, f0, q, 1.0, phi),
-            select(class < 2.5, koi_fish(t, t0, f0, q, 1.0, f_head: f_head, head: head, lead: lead, phi: phi),
-            select(class < 3.5, whistle(t, t0, f_min, f_max, half, 1.0, phi),
-            select(class < 4.5, scratchy(t, t0, f0, rate, duration, 1.0, phi),
-            tf2_strain_td(t, f, 30 Hz, mc, mass_ratio, 0.0, 0.0, 400 Mpc, tc, phi) / 1e-21))))
-    output w = whiten(h, psd_aligo_zerodet_highpower(max(f, 10 Hz)) / 1e-42 s, t, f, 20 Hz, 2000 Hz)
-}
-scene coloured_noise {
-    grid t = times(rate: 4096 Hz, duration: 1 s)
-    grid f = spectrum(t)
-    input n: real[t] = 0.0
-    param knee: Hz = 60.0
-    output noise = irfft(rfft(n, f) * sqrt(1.0 + band(f, 20 Hz, 2000 Hz) * (knee / max(f, 1 Hz)) ^ 2), t)
-}
-";
+const GLITCH_SCENE: &str = include_str!("../models/glitch/synth.gw");
 
 /// The whitened signal shapes of [`glitches`], to draw one signal at a time
 /// with params of the caller's choosing (the learned glitch generator
 /// samples through it).
 pub struct GlitchSignals {
-    model: crate::Model,
-    scene: crate::Scene,
+    model: gwml_runtime::Model,
+    scene: gwml_runtime::Scene,
 }
 
 impl GlitchSignals {
     /// Compiles the signal scene.
     pub fn new() -> Result<GlitchSignals, Error> {
-        let model = crate::Model::from_source("glitch-data.gw", GLITCH_SCENE)?;
+        let model = gwml_runtime::Model::from_source("glitch-data.gw", GLITCH_SCENE)?;
         let scene = model.scene(Some("glitch"))?;
         Ok(GlitchSignals { model, scene })
     }
@@ -153,7 +140,7 @@ impl GlitchSignals {
     /// glitch shapes' (`t0`, `f0`, `q`, `f_head`, `head`, `lead`, `f_min`,
     /// `f_max`, `half`, `rate`, `duration`, `phi`) and the chirp's (`mc`,
     /// `mass_ratio`, `tc`); unset ones keep their defaults.
-    pub fn bind(&self) -> crate::Run<'_> {
+    pub fn bind(&self) -> gwml_runtime::Run<'_> {
         self.scene.bind()
     }
 }
@@ -161,14 +148,14 @@ impl GlitchSignals {
 /// The whitened signal of `class` (an index into [`GLITCH_CLASSES`], not
 /// 0) with the given params, scaled to unit norm (optimal SNR 1 in
 /// unit-variance white noise): 4096 samples over 1 s.
-pub fn unit_signal(run: &mut crate::Run, class: usize, settings: &[(&str, f64)]) -> Result<Vec<f64>, Error> {
+pub fn unit_signal(run: &mut gwml_runtime::Run, class: usize, settings: &[(&str, f64)]) -> Result<Vec<f64>, Error> {
     let (mut w, norm) = signal_and_norm(run, class, settings)?;
     w.iter_mut().for_each(|v| *v /= norm);
     Ok(w)
 }
 
 /// The whitened signal and its (positive) norm.
-fn signal_and_norm(run: &mut crate::Run, class: usize, settings: &[(&str, f64)]) -> Result<(Vec<f64>, f64), Error> {
+fn signal_and_norm(run: &mut gwml_runtime::Run, class: usize, settings: &[(&str, f64)]) -> Result<(Vec<f64>, f64), Error> {
     if class == 0 || class >= GLITCH_CLASSES.len() {
         return Err(Error::Bind(format!("class {class} has no signal shape")));
     }

@@ -1,8 +1,8 @@
 //! Classifier 1 of the glitch experiment (issue #7): traditional filtering,
 //! no training.
 //!
-//! The whitened 1 s segments of [`gwml::runtime::synth::glitches`] are
-//! matched-filtered against a fixed bank (`examples/glitch/bank.gw`:
+//! The whitened 1 s segments of [`crate::synth::glitches`] are
+//! matched-filtered against a fixed bank (`lab/models/glitch/bank.gw`:
 //! sine-Gaussians over 10 central frequencies × 3 quality factors, which
 //! tile the time-frequency plane like a Q-transform, and 6 TaylorF2
 //! chirps). Each row gives one SNR time series ρ_k(t) per template; a few
@@ -29,13 +29,13 @@
 //!   main burst's own leakage into those templates is symmetric in time; a
 //!   Koi Fish's head is not).
 use super::metrics::Confusion;
-use gwml::runtime::dataset::Array;
-use gwml::runtime::synth::GLITCH_CLASSES;
-use gwml::{Model, Outputs, Run, Scene, Value};
+use crate::synth::GLITCH_CLASSES;
+use gwml_runtime::dataset::Array;
+use gwml_runtime::{Model, Outputs, Run, Scene, Value};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The filter bank scene.
-const BANK: &str = include_str!("../../examples/glitch/bank.gw");
+const BANK: &str = include_str!("../../models/glitch/bank.gw");
 /// Samples per row, and per second.
 const SAMPLES: usize = 4096;
 const RATE: f64 = 4096.0;
@@ -168,7 +168,7 @@ impl Thresholds {
     }
 }
 
-/// The rule-based classifier: a fixed filter bank (`examples/glitch/bank.gw`,
+/// The rule-based classifier: a fixed filter bank (`lab/models/glitch/bank.gw`,
 /// embedded with `include_str!`) and thresholds.
 pub struct RuleClassifier {
     scene: Scene,
@@ -185,7 +185,7 @@ impl RuleClassifier {
     /// Compiles the bank and calibrates the noise statistics of extended
     /// excess power on seeded white noise; thresholds start at their defaults.
     pub fn new() -> Result<Self, String> {
-        let model = Model::from_source("examples/glitch/bank.gw", BANK).map_err(|e| e.to_string())?;
+        let model = Model::from_source("lab/models/glitch/bank.gw", BANK).map_err(|e| e.to_string())?;
         let scene = model.scene(Some("bank")).map_err(|e| e.to_string())?;
         let names: Vec<String> = scene.forward_ir().outputs.iter().map(|o| o.name.clone()).collect();
         let kinds = names.iter().map(|n| parse_template(n)).collect::<Result<Vec<_>, _>>()?;
@@ -489,7 +489,7 @@ impl Normal {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gwml::runtime::synth::{glitches, GlitchOptions};
+    use crate::synth::{glitches, GlitchOptions};
 
     fn data(n: usize, seed: u64, snr: (f64, f64)) -> (Array, Vec<usize>) {
         let mut d = glitches(&GlitchOptions { n, seed, snr, ..Default::default() }).unwrap();
