@@ -1,0 +1,1 @@
+//! GWOSC HDF5 strain files (placeholder: being written).
