@@ -3,7 +3,7 @@
 //! synthetic datasets.
 
 use crate::commands::{options, render, split_pair};
-use crate::{DataArgs, DataKind, PredictArgs, ScheduleArg, TrainArgs, TrainOptimizerArg};
+use crate::{DataArgs, PredictArgs, ScheduleArg, TrainArgs, TrainOptimizerArg};
 use gwml::runtime::checkpoint;
 use gwml::runtime::dataset::{self, Array, Dataset};
 use gwml::runtime::optim::{Method, OptimConfig, Schedule};
@@ -132,20 +132,7 @@ pub fn predict(a: PredictArgs) -> Result<(), String> {
     let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
     let ck = checkpoint::load(&a.weights).map_err(render)?;
     let mut run = scene.bind();
-    let func = scene.ir();
-    let mut bound = 0;
-    for t in &ck.tensors {
-        if func.inputs.iter().any(|i| i.is_weight() && i.name == t.name) {
-            run.input_real(&t.name, &t.data).map_err(render)?;
-            bound += 1;
-        } else if t.shape.is_empty() && func.params.iter().any(|p| p.name == t.name) {
-            run.param(&t.name, t.data[0]).map_err(render)?;
-        }
-    }
-    let weights = func.inputs.iter().filter(|i| i.is_weight()).count();
-    if bound < weights {
-        return Err(format!("error: {} holds {bound} of the scene's {weights} weight tensors", a.weights.display()));
-    }
+    run.load_weights(&ck).map_err(|e| format!("{} (in {})", render(e), a.weights.display()))?;
     let mut inputs: Vec<(String, Array)> = Vec::new();
     for s in &a.input {
         let (name, path) = split_pair(s, "--input")?;
@@ -188,9 +175,9 @@ pub fn predict(a: PredictArgs) -> Result<(), String> {
 }
 
 /// `gwml data`.
-pub fn data(a: DataArgs) -> Result<(), String> {
-    match a.kind {
-        DataKind::Bursts => {
+pub fn data(a: DataArgs, glitch: bool) -> Result<(), String> {
+    match glitch {
+        false => {
             if a.psd_knee != 0.0 {
                 return Err("error: --psd-knee applies to glitch data only".into());
             }
@@ -199,6 +186,9 @@ pub fn data(a: DataArgs) -> Result<(), String> {
             }
             if a.koi_fish_loudness.is_some() {
                 return Err("error: --koi-fish-loudness applies to glitch data only".into());
+            }
+            if a.centred {
+                return Err("error: --centred applies to glitch data only".into());
             }
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("6..15"))?;
             let ds = bursts(&BurstOptions { n: a.n, seed: a.seed, snr: (lo, hi), ..Default::default() }).map_err(render)?;
@@ -211,7 +201,7 @@ pub fn data(a: DataArgs) -> Result<(), String> {
                 a.n - ones
             );
         }
-        DataKind::Glitch => {
+        true => {
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("8..30"))?;
             let ds = glitches(&GlitchOptions {
                 n: a.n,
@@ -220,6 +210,7 @@ pub fn data(a: DataArgs) -> Result<(), String> {
                 koi_fish_loudness: a.koi_fish_loudness.unwrap_or(KOI_FISH_LOUDNESS),
                 psd_knee: a.psd_knee,
                 class: a.class.map(|c| c.label()),
+                centred: a.centred,
             })
             .map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;

@@ -3,6 +3,7 @@
 mod commands;
 mod learn;
 mod repl;
+mod scan;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use gwml::compiler::ir::{MathMode, Precision, UnknownSetting};
@@ -42,8 +43,11 @@ enum Command {
     Train(TrainArgs),
     /// Apply trained weights to each row of NumPy inputs and write outputs.
     Predict(PredictArgs),
-    /// Write a synthetic labelled dataset (.npz).
-    Data(DataArgs),
+    /// Write synthetic data: labelled datasets (.npz) or long strain in GWOSC layout (.hdf5).
+    #[command(subcommand)]
+    Data(DataCommand),
+    /// Scan strain files for glitches: PSD, whitening, Q-tile triggers, classification.
+    Scan(scan::ScanArgs),
     /// Run a reference experiment end to end and write its tables and plots.
     Experiment(ExperimentArgs),
     /// The learned glitch generator: fit one glitch family's distribution
@@ -328,22 +332,23 @@ pub struct PredictArgs {
 }
 
 /// Kinds of synthetic data.
-#[derive(Clone, Copy, ValueEnum)]
-pub enum DataKind {
+#[derive(Subcommand)]
+pub enum DataCommand {
     /// Sine-Gaussian bursts in white noise (label 1) or noise alone (label 0):
     /// `x` of 256 samples at 256 Hz, f0 20-100 Hz, Q 3-12.
-    Bursts,
+    Bursts(DataArgs),
     /// Whitened 1 s segments at 4096 Hz of six classes (label 0 None, 1 Blip,
     /// 2 Koi Fish, 3 Whistle, 4 Scratchy, 5 Chirp) in aLIGO noise, SNR 8-30
     /// by default (Koi Fish 24-90); `x` is n × 4096.
-    Glitch,
+    Glitch(DataArgs),
+    /// Long strain at 4096 Hz in GWOSC HDF5 layout: coloured Gaussian noise
+    /// from a PSD, glitches injected at known times (listed by --truth),
+    /// optional missing data.
+    Strain(scan::StrainArgs),
 }
 
 #[derive(clap::Args)]
 pub struct DataArgs {
-    /// What to draw.
-    #[arg(value_enum)]
-    pub kind: DataKind,
     /// Number of examples.
     #[arg(long, default_value_t = 1000)]
     pub n: usize,
@@ -367,6 +372,10 @@ pub struct DataArgs {
     /// glitch only: draw only this class [default: all six, uniformly].
     #[arg(long, value_enum)]
     pub class: Option<GlitchClass>,
+    /// glitch only: centre signals as a scan's trigger window does (glitch
+    /// centres and chirp mergers at 0.4-0.6 s), for classifiers `gwml scan` runs.
+    #[arg(long)]
+    pub centred: bool,
     /// The .npz file to write.
     #[arg(long, value_name = "PATH.npz")]
     pub out: PathBuf,
@@ -449,7 +458,10 @@ fn main() -> ExitCode {
         Command::Tradeoff(a) => commands::tradeoff(a),
         Command::Train(a) => learn::train(a),
         Command::Predict(a) => learn::predict(a),
-        Command::Data(a) => learn::data(a),
+        Command::Data(DataCommand::Bursts(a)) => learn::data(a, false),
+        Command::Data(DataCommand::Glitch(a)) => learn::data(a, true),
+        Command::Data(DataCommand::Strain(a)) => scan::data_strain(a),
+        Command::Scan(a) => scan::scan(a),
         Command::Generator(GeneratorCommand::Fit(a)) => generator::fit_command(a),
         Command::Generator(GeneratorCommand::Sample(a)) => generator::sample_command(a),
         Command::Experiment(a) => match a.which {

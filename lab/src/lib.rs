@@ -19,6 +19,7 @@ use std::io::IsTerminal;
 pub mod experiment;
 pub mod generator;
 pub mod plot;
+pub mod strain;
 pub mod synth;
 pub mod timing;
 pub mod tradeoff;

@@ -118,7 +118,7 @@ impl GlitchClass {
 pub const GLITCH_CLASSES: &[&str] = &["None", "Blip", "Koi Fish", "Whistle", "Scratchy", "Chirp"];
 
 /// The scene that draws one whitened signal of any class (`class` selects).
-const GLITCH_SCENE: &str = include_str!("../models/glitch/synth.gw");
+pub(crate) const GLITCH_SCENE: &str = include_str!("../models/glitch/synth.gw");
 
 /// The whitened signal shapes of [`glitches`], to draw one signal at a time
 /// with params of the caller's choosing (the learned glitch generator
@@ -198,11 +198,23 @@ pub struct GlitchOptions {
     /// Draw only this class (an index into [`GLITCH_CLASSES`]); `None`:
     /// every class, uniformly at random.
     pub class: Option<usize>,
+    /// Centre every signal as a scan's trigger window does: glitch centres
+    /// and the chirp's merger at 0.4–0.6 s (instead of glitches at 0.3–0.7 s
+    /// and mergers at 0.8–0.95 s, where position tells a chirp apart).
+    pub centred: bool,
 }
 
 impl Default for GlitchOptions {
     fn default() -> Self {
-        GlitchOptions { n: 1000, seed: 1, snr: (8.0, 30.0), koi_fish_loudness: KOI_FISH_LOUDNESS, psd_knee: 0.0, class: None }
+        GlitchOptions {
+            n: 1000,
+            seed: 1,
+            snr: (8.0, 30.0),
+            koi_fish_loudness: KOI_FISH_LOUDNESS,
+            psd_knee: 0.0,
+            class: None,
+            centred: false,
+        }
     }
 }
 
@@ -213,6 +225,39 @@ impl Default for GlitchOptions {
 /// A factor of 3 (SNR 24–90 for the default 8–30) keeps part of the Koi
 /// Fish as quiet as the loudest Blips, so loudness is a cue and not a label.
 pub const KOI_FISH_LOUDNESS: f64 = 3.0;
+
+/// Draws the shape params of a signal of `class` from the ranges of
+/// [`glitches`] (every param of the signal scene; the class's own are used).
+pub fn draw_shape<R: Rng>(rng: &mut R, class: usize) -> [(&'static str, f64); 15] {
+    let mut u = |lo: f64, hi: f64| rng.random_range(lo..=hi);
+    let f_min = u(300.0, 900.0);
+    [
+        ("t0", u(0.3, 0.7)),
+        (
+            "f0",
+            if class == 2 {
+                u(110.0, 160.0)
+            } else if class == 4 {
+                u(30.0, 400.0)
+            } else {
+                u(30.0, 250.0)
+            },
+        ),
+        ("q", u(2.0, 6.0)),
+        ("f_head", u(20.0, 50.0)),
+        ("head", u(0.1, 0.3)),
+        ("lead", u(0.01, 0.03)),
+        ("f_min", f_min),
+        ("f_max", f_min + u(200.0, 600.0)),
+        ("half", u(0.1, 0.3)),
+        ("rate", u(12.0, 25.0)),
+        ("duration", u(0.4, 0.8)),
+        ("mc", u(18.0, 40.0)),
+        ("mass_ratio", u(0.3, 1.0)),
+        ("tc", u(0.8, 0.95)),
+        ("phi", u(0.0, std::f64::consts::TAU)),
+    ]
+}
 
 /// Draws whitened segments `x` (`n × 4096`) with labels `label` (`n`,
 /// indices into [`GLITCH_CLASSES`]). Parameter ranges, per class:
@@ -258,35 +303,12 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
             }
         }
         if class > 0 {
-            let mut u = |lo: f64, hi: f64| rng.random_range(lo..=hi);
-            let f_min = u(300.0, 900.0);
-            let settings = [
-                ("t0", u(0.3, 0.7)),
-                (
-                    "f0",
-                    if class == 2 {
-                        u(110.0, 160.0)
-                    } else if class == 4 {
-                        u(30.0, 400.0)
-                    } else {
-                        u(30.0, 250.0)
-                    },
-                ),
-                ("q", u(2.0, 6.0)),
-                ("f_head", u(20.0, 50.0)),
-                ("head", u(0.1, 0.3)),
-                ("lead", u(0.01, 0.03)),
-                ("f_min", f_min),
-                ("f_max", f_min + u(200.0, 600.0)),
-                ("half", u(0.1, 0.3)),
-                ("rate", u(12.0, 25.0)),
-                ("duration", u(0.4, 0.8)),
-                ("mc", u(18.0, 40.0)),
-                ("mass_ratio", u(0.3, 1.0)),
-                ("tc", u(0.8, 0.95)),
-                ("phi", u(0.0, std::f64::consts::TAU)),
-            ];
-            let snr = u(o.snr.0, o.snr.1) * if class == 2 { o.koi_fish_loudness } else { 1.0 };
+            let mut settings = draw_shape(&mut rng, class);
+            if o.centred {
+                let centre = rng.random_range(0.4..=0.6);
+                settings.iter_mut().filter(|p| p.0 == "t0" || p.0 == "tc").for_each(|p| p.1 = centre);
+            }
+            let snr = rng.random_range(o.snr.0..=o.snr.1) * if class == 2 { o.koi_fish_loudness } else { 1.0 };
             // `snr * v / norm` rather than a unit signal: the same rounding
             // as the datasets `results/glitch` was computed from.
             let (w, norm) = signal_and_norm(&mut run, class, &settings)?;

@@ -131,8 +131,14 @@ pub fn save(path: &Path, ck: &Checkpoint) -> Result<(), Error> {
 /// name. Values are not checked for finiteness.
 pub fn load(path: &Path) -> Result<Checkpoint, Error> {
     let bytes = std::fs::read(path).map_err(|e| Error::Io(format!("cannot read checkpoint {}: {e}", path.display())))?;
-    let corrupt = |msg: String| Error::Io(format!("{} is not a valid safetensors checkpoint: {msg}", path.display()));
-    let (header_len, meta): (usize, Metadata) = SafeTensors::read_metadata(&bytes).map_err(|e| corrupt(e.to_string()))?;
+    parse(&bytes, &path.display().to_string())
+}
+
+/// Reads a checkpoint from the bytes of a safetensors file (`origin` names
+/// it in errors), as [`load`] does.
+pub fn parse(bytes: &[u8], origin: &str) -> Result<Checkpoint, Error> {
+    let corrupt = |msg: String| Error::Io(format!("{origin} is not a valid safetensors checkpoint: {msg}"));
+    let (header_len, meta): (usize, Metadata) = SafeTensors::read_metadata(bytes).map_err(|e| corrupt(e.to_string()))?;
     let data = HEADER_LEN_BYTES.checked_add(header_len).and_then(|start| bytes.get(start..)).ok_or_else(|| corrupt("truncated".into()))?;
     let mut infos: Vec<_> = meta.tensors().into_iter().collect();
     infos.sort_by(|a, b| a.0.cmp(&b.0));
@@ -146,10 +152,7 @@ pub fn load(path: &Path) -> Result<Checkpoint, Error> {
             Dtype::F64 => raw.chunks_exact(8).map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])).collect(),
             Dtype::F32 => raw.chunks_exact(4).map(|c| f64::from(f32::from_le_bytes([c[0], c[1], c[2], c[3]]))).collect(),
             other => {
-                return Err(Error::Io(format!(
-                    "checkpoint {}: tensor `{name}` has dtype {other:?}; only F64 and F32 can be loaded",
-                    path.display()
-                )))
+                return Err(Error::Io(format!("checkpoint {origin}: tensor `{name}` has dtype {other:?}; only F64 and F32 can be loaded")))
             }
         };
         tensors.push(Tensor { name, shape: info.shape.clone(), data: values });

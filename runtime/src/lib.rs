@@ -336,6 +336,27 @@ impl<'s> Run<'s> {
         self.scene.ir()
     }
 
+    /// Binds a trained checkpoint: every weight input of the scene from its
+    /// tensor, and scalar params the checkpoint holds (trained params).
+    /// Returns how many weights were bound; every weight must be present.
+    pub fn load_weights(&mut self, ck: &checkpoint::Checkpoint) -> Result<usize, Error> {
+        let func = self.func();
+        let mut bound = 0;
+        for input in func.inputs.iter().filter(|i| i.is_weight()) {
+            let Some(t) = ck.get(&input.name) else {
+                return Err(Error::Bind(format!("the checkpoint has no tensor `{}` for the scene's weight", input.name)));
+            };
+            self.input_real(&input.name, &t.data)?;
+            bound += 1;
+        }
+        for t in ck.tensors.iter().filter(|t| t.shape.is_empty()) {
+            if func.params.iter().any(|p| p.name == t.name) {
+                self.param(&t.name, t.data[0])?;
+            }
+        }
+        Ok(bound)
+    }
+
     /// Sets param `name` (in its declared unit).
     pub fn param(&mut self, name: &str, value: f64) -> Result<&mut Self, Error> {
         let f = self.func();

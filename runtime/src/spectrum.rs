@@ -138,6 +138,20 @@ impl Spectrum {
         Ok(Spectrum::from_points(freqs, psd, origin.to_string()))
     }
 
+    /// A spectrum from PSD points computed in memory: at least two, positive
+    /// finite strictly increasing frequencies, positive finite values.
+    pub fn new(freqs: Vec<f64>, psd: Vec<f64>, origin: impl Into<String>) -> Result<Spectrum, Error> {
+        let origin = origin.into();
+        let increasing = freqs.windows(2).all(|w| w[1] > w[0]) && freqs.first().is_some_and(|f| *f > 0.0);
+        let positive = psd.iter().all(|s| *s > 0.0 && s.is_finite()) && freqs.iter().all(|f| f.is_finite());
+        if freqs.len() < 2 || freqs.len() != psd.len() || !increasing || !positive {
+            return Err(Error::Bind(format!(
+                "{origin}: a spectrum needs at least two points of positive increasing frequency and positive finite PSD"
+            )));
+        }
+        Ok(Spectrum::from_points(freqs, psd, origin))
+    }
+
     /// A spectrum from PSD points already checked: positive, finite, strictly
     /// increasing frequencies, positive finite values, at least two.
     fn from_points(freqs: Vec<f64>, psd: Vec<f64>, origin: String) -> Spectrum {

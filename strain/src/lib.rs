@@ -4,9 +4,17 @@
 //! GWOSC HDF5 strain files, [`series`] holds a stretch of strain and
 //! splits it at missing data, [`psd`] estimates the noise PSD by Welch's
 //! method, [`qtransform`] tiles whitened data in time, frequency and Q,
-//! [`triggers`] clusters loud tiles into triggers.
+//! [`triggers`] clusters loud tiles into triggers, [`classifier`] labels
+//! them with a trained gwml model, and [`scan`] runs the stages over a
+//! long stretch of strain in parallel chunks.
 
+pub mod classifier;
 pub mod gwosc;
+pub mod psd;
+pub mod qtransform;
+pub mod scan;
+pub mod series;
+pub mod triggers;
 
 use std::fmt;
 

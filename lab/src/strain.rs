@@ -1,0 +1,222 @@
+//! `gwml data strain`: realistic long strain for users and tests, coloured
+//! Gaussian noise from a PSD with glitches of the library's families
+//! injected at known times, optional stretches of missing data, in the
+//! layout of a GWOSC file.
+//!
+//! Noise: each frequency bin of the whole duration is an independent
+//! complex Gaussian of variance `S(f)/(2 df)` (runtime's `noise`
+//! convention), inverse-FFT'd, so the noise is exactly stationary with
+//! one-sided PSD `S`. Glitches: the signals of `lab/models/glitch/synth.gw`
+//! (scene `glitch_strain`) with shape params drawn as for `gwml data glitch`
+//! ([`crate::synth::draw_shape`]), centred on their injection time (the
+//! chirp's merger at it), scaled to an optimal SNR drawn uniformly from the
+//! range: `ρ² = 4 df Σ |h̃(f)|² / S(f)` over 20 Hz–2 kHz, the band of the
+//! glitch datasets. Injection times: a Poisson process of the given rate,
+//! at least 2 s apart and 10 s from the ends, never in a gap.
+
+use crate::synth::{draw_shape, GLITCH_CLASSES};
+use gwml_runtime::noise::colored_noise;
+use gwml_runtime::spectrum::Spectrum;
+use gwml_runtime::{Error, Model, Value};
+use gwml_strain::series::Series;
+use rand::{Rng, SeedableRng};
+use realfft::RealFftPlanner;
+
+/// Sample rate of simulated strain (that of the glitch signal scene).
+pub const SAMPLE_RATE: f64 = 4096.0;
+
+/// The noise PSD of simulated strain.
+#[derive(Clone, Debug)]
+pub enum NoiseCurve {
+    /// aLIGO zero-detuned high power (`std::psd`), held below 9 Hz.
+    Aligo,
+    /// A two-column ASD or PSD file (runtime's `spectrum` reader).
+    File(Spectrum),
+}
+
+/// What to simulate.
+#[derive(Clone, Debug)]
+pub struct StrainOptions {
+    /// Seconds of data (whole seconds).
+    pub duration: f64,
+    /// GPS time of the first sample.
+    pub gps_start: f64,
+    /// Detector name written to the file.
+    pub ifo: String,
+    /// Noise PSD.
+    pub psd: NoiseCurve,
+    /// Mean glitches per minute (0: noise only).
+    pub glitch_rate: f64,
+    /// Classes to inject (indices into [`GLITCH_CLASSES`], not 0), drawn uniformly.
+    pub classes: Vec<usize>,
+    /// Optimal SNR range.
+    pub snr: (f64, f64),
+    /// Missing data: (start seconds from the first sample, length seconds).
+    pub gaps: Vec<(f64, f64)>,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// One injected signal.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Injection {
+    /// GPS time of the glitch's centre (the chirp's merger).
+    pub gps_time: f64,
+    /// Index into [`GLITCH_CLASSES`].
+    pub class: usize,
+    /// Optimal SNR.
+    pub snr: f64,
+    /// The shape params the signal scene was given.
+    pub params: Vec<(&'static str, f64)>,
+}
+
+/// Simulates the strain and lists what was injected.
+pub fn simulate(o: &StrainOptions) -> Result<(Series, Vec<Injection>), Error> {
+    if !(o.duration >= 32.0 && o.duration.fract() == 0.0 && o.duration <= 1e6) {
+        return Err(Error::Bind(format!("--duration {} must be a whole number of seconds from 32 to 1e6", o.duration)));
+    }
+    if !(o.glitch_rate >= 0.0 && o.glitch_rate.is_finite() && o.glitch_rate <= 30.0) {
+        return Err(Error::Bind(format!("--glitch-rate {} per minute must be between 0 and 30", o.glitch_rate)));
+    }
+    if !(o.snr.0 > 0.0 && o.snr.1 >= o.snr.0 && o.snr.1.is_finite()) {
+        return Err(Error::Bind(format!("SNR range {}..{} must be positive and increasing", o.snr.0, o.snr.1)));
+    }
+    if o.classes.is_empty() || o.classes.iter().any(|c| *c == 0 || *c >= GLITCH_CLASSES.len()) {
+        return Err(Error::Bind("--classes must name at least one signal class (not None)".into()));
+    }
+    for &(start, len) in &o.gaps {
+        if !(start >= 0.0 && len > 0.0 && start + len <= o.duration) {
+            return Err(Error::Bind(format!("--gap {start}:{len} must lie inside the {} s of data", o.duration)));
+        }
+    }
+    let fs = SAMPLE_RATE;
+    let n = (o.duration * fs) as usize;
+    let curve = psd_curve(&o.psd)?;
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(o.seed);
+    let samples = noise(n, fs, &curve, rng.random())?;
+    let mut series =
+        Series { detector: o.ifo.clone(), gps_start: o.gps_start, sample_rate: fs, samples, dq: None, source: "simulated".into() };
+    let injections = inject(&mut series, o, &curve, &mut rng)?;
+    let seconds = o.duration as usize;
+    let mut dq = vec![127u32; seconds];
+    for &(start, len) in &o.gaps {
+        let (a, b) = ((start * fs) as usize, (((start + len) * fs) as usize).min(n));
+        series.samples[a..b].iter_mut().for_each(|v| *v = f64::NAN);
+        for word in &mut dq[start.floor() as usize..((start + len).ceil() as usize).min(seconds)] {
+            *word = 0;
+        }
+    }
+    series.dq = Some(dq);
+    Ok((series, injections))
+}
+
+/// The PSD as a function of frequency, positive everywhere.
+fn psd_curve(psd: &NoiseCurve) -> Result<Spectrum, Error> {
+    match psd {
+        NoiseCurve::File(s) => Ok(s.clone()),
+        NoiseCurve::Aligo => {
+            let model = Model::from_source(
+                "aligo.gw",
+                "use std::psd::{psd_aligo_zerodet_highpower}\n\
+                 scene aligo {\n    grid f = frequencies(from: 9 Hz, to: 4096 Hz, step: 0.25 Hz)\n    \
+                 output psd = psd_aligo_zerodet_highpower(f)\n}\n",
+            )?;
+            let scene = model.scene(None)?;
+            let out = scene.bind().forward()?;
+            let Value::RealArray(psd) = out.value("psd")?.clone() else {
+                return Err(Error::Bind("the aLIGO PSD scene's output is not a real array".into()));
+            };
+            let freqs = (0..psd.len()).map(|k| 9.0 + 0.25 * k as f64).collect();
+            Spectrum::new(freqs, psd, "std::psd aLIGO zero-detuned high power")
+        }
+    }
+}
+
+/// Stationary Gaussian noise of `n` samples with one-sided PSD `curve`.
+fn noise(n: usize, fs: f64, curve: &Spectrum, seed: u64) -> Result<Vec<f64>, Error> {
+    let df = fs / n as f64;
+    let bins = n / 2 + 1;
+    let psd: Vec<f64> = (0..bins).map(|k| if k == 0 || k == bins - 1 { 0.0 } else { curve.psd_at(k as f64 * df) }).collect();
+    let mut spectrum = colored_noise(&psd, df, seed)?;
+    let fft = RealFftPlanner::<f64>::new().plan_fft_inverse(n);
+    let mut out = fft.make_output_vec();
+    fft.process(&mut spectrum, &mut out).map_err(|e| Error::Bind(format!("inverse FFT failed: {e}")))?;
+    // x_j = df Σ_k X_k e^{2πi jk/n} over the two-sided spectrum.
+    out.iter_mut().for_each(|v| *v *= df);
+    Ok(out)
+}
+
+/// Draws injection times and signals and adds them to the samples.
+fn inject<R: Rng>(series: &mut Series, o: &StrainOptions, curve: &Spectrum, rng: &mut R) -> Result<Vec<Injection>, Error> {
+    if o.glitch_rate == 0.0 {
+        return Ok(Vec::new());
+    }
+    let model = Model::from_source("synth.gw", crate::synth::GLITCH_SCENE)?;
+    let scene = model.scene(Some("glitch_strain"))?;
+    let mut run = scene.bind();
+    let fs = series.sample_rate;
+    let window = fs as usize;
+    let psd_1hz: Vec<f64> = (0..=window / 2).map(|k| curve.psd_at(k as f64)).collect();
+    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(window);
+    let mean_gap = 60.0 / o.glitch_rate;
+    let mut injections = Vec::new();
+    let mut t = 10.0;
+    loop {
+        // Exponential waiting times, at least 2 s.
+        let u: f64 = rng.random_range(f64::EPSILON..1.0);
+        t += (-mean_gap * u.ln()).max(2.0);
+        if t > o.duration - 10.0 {
+            break;
+        }
+        let class = o.classes[rng.random_range(0..o.classes.len())];
+        let mut params = draw_shape(rng, class).to_vec();
+        let snr = rng.random_range(o.snr.0..=o.snr.1);
+        // Glitches centred in their 1 s window; a chirp merges at `tc`.
+        let centre = if class == 5 {
+            params.iter().find(|p| p.0 == "tc").map_or(0.9, |p| p.1)
+        } else {
+            params.iter_mut().filter(|p| p.0 == "t0").for_each(|p| p.1 = 0.5);
+            0.5
+        };
+        let window_start = ((t - centre) * fs).round() as usize;
+        if o.gaps.iter().any(|&(s, l)| t + 1.0 > s && t - 1.0 < s + l) {
+            continue;
+        }
+        run.param("class", class as f64)?;
+        for (name, value) in &params {
+            run.param(name, *value)?;
+        }
+        let Value::RealArray(h) = run.forward()?.value("h")?.clone() else {
+            return Err(Error::Bind("the glitch strain scene's output is not a real array".into()));
+        };
+        let mut input: Vec<f64> = h.iter().map(|v| v * 1e-21).collect();
+        let mut spectrum = fft.make_output_vec();
+        fft.process(&mut input, &mut spectrum).map_err(|e| Error::Bind(format!("FFT failed: {e}")))?;
+        let dt = 1.0 / fs;
+        let rho2: f64 = (20..=2000).map(|k| 4.0 * (spectrum[k] * dt).norm_sqr() / psd_1hz[k]).sum();
+        if !(rho2 > 0.0 && rho2.is_finite()) {
+            return Err(Error::Bind(format!("a {} signal has no power in 20-2000 Hz", GLITCH_CLASSES[class])));
+        }
+        let scale = snr / rho2.sqrt() * 1e-21;
+        for (x, v) in series.samples[window_start..window_start + window].iter_mut().zip(&h) {
+            *x += scale * v;
+        }
+        injections.push(Injection { gps_time: series.gps_start + window_start as f64 / fs + centre, class, snr, params });
+    }
+    Ok(injections)
+}
+
+/// Writes the injections as CSV: `gps_time,label,snr` then the shape params.
+pub fn write_truth(path: &std::path::Path, injections: &[Injection]) -> Result<(), Error> {
+    use std::fmt::Write;
+    let names: Vec<&str> = injections.first().map_or(Vec::new(), |i| i.params.iter().map(|p| p.0).collect());
+    let mut text = String::from("gps_time,label,snr");
+    names.iter().for_each(|n| text.push_str(&format!(",{n}")));
+    text.push('\n');
+    for i in injections {
+        let _ = write!(text, "{:.6},{},{:.4}", i.gps_time, GLITCH_CLASSES[i.class], i.snr);
+        i.params.iter().for_each(|p| text.push_str(&format!(",{}", p.1)));
+        text.push('\n');
+    }
+    std::fs::write(path, text).map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))
+}

@@ -1,0 +1,439 @@
+//! `gwml data strain` and `gwml scan`: the command-line shell over
+//! `gwml_lab::strain` (simulated strain) and `gwml_strain` (the scan).
+
+use crate::commands::render;
+use gwml_lab::parse_range;
+use gwml_lab::strain::{simulate, write_truth, NoiseCurve, StrainOptions};
+use gwml_lab::synth::GlitchClass;
+use gwml_strain::classifier::{Classifier, Manifest};
+use gwml_strain::gwosc::{self, StrainFile, WriteOptions};
+use gwml_strain::scan::{Report, ScanOptions, Scanner};
+use gwml_strain::series::{join, Series, SkipReason};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The shipped classifier, embedded so `gwml scan` works from anywhere.
+const SHIPPED_MANIFEST: &str = include_str!("../models/glitch-classifier/glitch-classifier.json");
+const SHIPPED_MODEL: &str = include_str!("../lab/models/glitch/cnn.gw");
+const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../models/glitch-classifier/cnn.safetensors");
+const SHIPPED_PATH: &str = "models/glitch-classifier/glitch-classifier.json";
+
+#[derive(clap::Args)]
+pub struct StrainArgs {
+    /// Seconds of data (whole seconds, at least 32).
+    #[arg(long)]
+    pub duration: f64,
+    /// The HDF5 file to write (GWOSC layout).
+    #[arg(long, value_name = "FILE.hdf5")]
+    pub out: PathBuf,
+    /// Detector name written to meta/Detector.
+    #[arg(long, default_value = "H1")]
+    pub ifo: String,
+    /// Noise PSD: `aligo` (aLIGO zero-detuned high power, std::psd) or a
+    /// two-column text file of frequency and PSD (`asd:FILE` for an ASD).
+    #[arg(long, default_value = "aligo")]
+    pub psd: String,
+    /// Mean glitches per minute (a Poisson process; 0 for noise alone).
+    #[arg(long, value_name = "PER_MINUTE", default_value_t = 6.0)]
+    pub glitch_rate: f64,
+    /// Classes to inject, drawn uniformly.
+    #[arg(long, value_enum, value_delimiter = ',', default_values = ["blip", "koi-fish", "whistle", "scratchy"])]
+    pub classes: Vec<GlitchClass>,
+    /// Optimal SNR range of injections (against the PSD, 20 Hz-2 kHz).
+    #[arg(long, default_value = "8..30")]
+    pub snr: String,
+    /// Missing data: NaN samples and the DQ DATA bit cleared over START:LENGTH
+    /// seconds from the first sample (repeatable).
+    #[arg(long, value_name = "START:LENGTH")]
+    pub gap: Vec<String>,
+    /// GPS time of the first sample.
+    #[arg(long, default_value_t = 1_264_000_000.0)]
+    pub gps_start: f64,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// CSV of the injections (gps_time, label, snr, shape params).
+    #[arg(long, value_name = "TRUTH.csv")]
+    pub truth: Option<PathBuf>,
+    /// Store the strain contiguous instead of gzip-compressed chunks.
+    #[arg(long)]
+    pub uncompressed: bool,
+}
+
+/// `gwml data strain`.
+pub fn data_strain(a: StrainArgs) -> Result<(), String> {
+    let psd = match a.psd.as_str() {
+        "aligo" => NoiseCurve::Aligo,
+        other => {
+            let (kind, path) = match other.strip_prefix("asd:") {
+                Some(p) => (gwml::runtime::spectrum::Kind::Asd, p),
+                None => (gwml::runtime::spectrum::Kind::Psd, other.strip_prefix("psd:").unwrap_or(other)),
+            };
+            NoiseCurve::File(gwml::runtime::spectrum::Spectrum::read(path, kind).map_err(render)?)
+        }
+    };
+    let gaps = a
+        .gap
+        .iter()
+        .map(|g| {
+            let (s, l) = g.split_once(':').ok_or_else(|| format!("error: --gap `{g}`: expected START:LENGTH in seconds"))?;
+            let num = |x: &str| x.trim().parse::<f64>().map_err(|_| format!("error: --gap `{g}`: `{x}` is not a number"));
+            Ok((num(s)?, num(l)?))
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    let options = StrainOptions {
+        duration: a.duration,
+        gps_start: a.gps_start,
+        ifo: a.ifo.clone(),
+        psd,
+        glitch_rate: a.glitch_rate,
+        classes: a.classes.iter().map(|c| c.label()).collect(),
+        snr: parse_range(&a.snr)?,
+        gaps,
+        seed: a.seed,
+    };
+    if a.ifo.is_empty() || !a.ifo.chars().all(|c| c.is_ascii_alphanumeric()) {
+        return Err(format!("error: --ifo `{}` must be a detector name such as H1", a.ifo));
+    }
+    let (series, injections) = simulate(&options).map_err(render)?;
+    let file = StrainFile {
+        detector: series.detector,
+        gps_start: series.gps_start,
+        sample_rate: series.sample_rate,
+        samples: series.samples,
+        dq_mask: series.dq,
+        dq_names: Vec::new(),
+    };
+    let write = WriteOptions { chunk: (!a.uncompressed).then_some(16_384), gzip_level: 4 };
+    gwosc::write(&a.out, &file, &write).map_err(|e| format!("error: {e}"))?;
+    println!(
+        "wrote {}: {} s of {} strain at {} Hz from GPS {}, {} injections",
+        a.out.display(),
+        a.duration,
+        a.ifo,
+        file.sample_rate,
+        a.gps_start,
+        injections.len()
+    );
+    if let Some(path) = &a.truth {
+        write_truth(path, &injections).map_err(render)?;
+        println!("wrote {} (gps_time,label,snr and shape params)", path.display());
+    }
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct ScanArgs {
+    /// Strain files: GWOSC HDF5 (.hdf5, .h5) of one detector, consecutive
+    /// segments in any order; or one .npy with --sample-rate and --gps-start.
+    #[arg(required = true, value_name = "STRAIN")]
+    pub strain: Vec<PathBuf>,
+    /// Classifier: a manifest (glitch-classifier.json) or a .gw file with
+    /// --weights [default: the shipped classifier, models/glitch-classifier].
+    #[arg(long, value_name = "M.gw|MANIFEST.json")]
+    pub model: Option<PathBuf>,
+    /// Trained weights for a --model .gw file.
+    #[arg(long, value_name = "W.safetensors")]
+    pub weights: Option<PathBuf>,
+    /// Report triggers without classifying them.
+    #[arg(long, conflicts_with_all = ["model", "weights"])]
+    pub no_classify: bool,
+    /// Where to write triggers: .csv or .json [default: triggers.csv].
+    #[arg(long, value_name = "triggers.csv|triggers.json", default_value = "triggers.csv")]
+    pub out: PathBuf,
+    /// Minimum SNR of a trigger's loudest tile.
+    #[arg(long, default_value_t = 7.5)]
+    pub snr_threshold: f64,
+    /// Lowest frequency searched (Hz).
+    #[arg(long, default_value_t = 10.0)]
+    pub fmin: f64,
+    /// Highest frequency searched (Hz); lowered to what Q and Nyquist allow.
+    #[arg(long, default_value_t = 2048.0)]
+    pub fmax: f64,
+    /// Seconds of data each PSD estimate is made from (re-estimated per chunk).
+    #[arg(long, default_value_t = 128.0)]
+    pub psd_stretch: f64,
+    /// Welch FFT length in seconds.
+    #[arg(long, default_value_t = 4.0)]
+    pub fft_length: f64,
+    /// Worker threads [default: all cores].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Directory for plots: triggers in time and frequency, coloured by label.
+    #[arg(long, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
+    /// .npy input: samples per second.
+    #[arg(long, value_name = "HZ")]
+    pub sample_rate: Option<f64>,
+    /// .npy input: GPS time of the first sample.
+    #[arg(long, value_name = "GPS")]
+    pub gps_start: Option<f64>,
+    /// .npy input: detector name.
+    #[arg(long, default_value = "X1")]
+    pub ifo: String,
+}
+
+/// Reads one strain file into a series.
+fn read_strain(path: &Path, a: &ScanArgs) -> Result<Series, String> {
+    let is_npy = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+    if is_npy {
+        let (Some(rate), Some(gps)) = (a.sample_rate, a.gps_start) else {
+            return Err(format!("error: {}: a .npy file needs --sample-rate and --gps-start", path.display()));
+        };
+        let data = gwml::runtime::npy::read(path).map_err(render)?;
+        if data.complex {
+            return Err(format!("error: {}: strain must be real, the file holds complex numbers", path.display()));
+        }
+        return Ok(Series {
+            detector: a.ifo.clone(),
+            gps_start: gps,
+            sample_rate: rate,
+            samples: data.values.iter().map(|c| c.re).collect(),
+            dq: None,
+            source: path.display().to_string(),
+        });
+    }
+    if a.sample_rate.is_some() || a.gps_start.is_some() {
+        return Err(format!("error: {}: --sample-rate and --gps-start are for .npy files; an HDF5 file carries its own", path.display()));
+    }
+    let f = gwosc::read(path).map_err(|e| format!("error: {e}"))?;
+    Ok(Series {
+        detector: f.detector,
+        gps_start: f.gps_start,
+        sample_rate: f.sample_rate,
+        samples: f.samples,
+        dq: f.dq_mask,
+        source: path.display().to_string(),
+    })
+}
+
+/// The classifier the arguments ask for.
+fn classifier(a: &ScanArgs) -> Result<Option<Classifier>, String> {
+    if a.no_classify {
+        return Ok(None);
+    }
+    let fail = |e: gwml_strain::Error| format!("error: {e}");
+    let c = match (&a.model, &a.weights) {
+        (None, Some(_)) => return Err("error: --weights needs --model (the .gw file they belong to)".into()),
+        (None, None) => {
+            let manifest = Manifest::parse(SHIPPED_MANIFEST, Path::new(SHIPPED_PATH)).map_err(fail)?;
+            let weights = gwml::runtime::checkpoint::parse(SHIPPED_WEIGHTS, "the shipped classifier's weights").map_err(render)?;
+            Classifier::build(manifest, SHIPPED_MODEL, weights).map_err(fail)?
+        }
+        (Some(m), w) if m.extension().is_some_and(|e| e == "json") => {
+            if w.is_some() {
+                return Err("error: a manifest names its own weights; drop --weights".into());
+            }
+            Classifier::load(Manifest::read(m).map_err(fail)?).map_err(fail)?
+        }
+        (Some(m), Some(w)) => {
+            // A bare model: the shipped manifest's conventions (classes, rate, band).
+            let mut manifest = Manifest::parse(SHIPPED_MANIFEST, Path::new(SHIPPED_PATH)).map_err(fail)?;
+            (manifest.model, manifest.weights) = (m.clone(), w.clone());
+            Classifier::load(manifest).map_err(fail)?
+        }
+        (Some(m), None) => return Err(format!("error: --model {} needs --weights (or give a manifest .json)", m.display())),
+    };
+    Ok(Some(c))
+}
+
+/// `gwml scan`.
+pub fn scan(a: ScanArgs) -> Result<(), String> {
+    let started = Instant::now();
+    let format = match a.out.extension().and_then(|e| e.to_str()) {
+        Some("csv") => "csv",
+        Some("json") => "json",
+        _ => return Err(format!("error: --out {}: write .csv or .json", a.out.display())),
+    };
+    let parts = a.strain.iter().map(|p| read_strain(p, &a)).collect::<Result<Vec<_>, _>>()?;
+    let (series, mut gaps) = join(parts).map_err(|e| format!("error: {e}"))?;
+    let options = ScanOptions {
+        snr_threshold: a.snr_threshold,
+        f_range: (a.fmin, a.fmax),
+        psd_stretch: a.psd_stretch,
+        fft_length: a.fft_length,
+        ..ScanOptions::default()
+    };
+    let scanner = Scanner::new(options, classifier(&a)?).map_err(|e| format!("error: {e}"))?;
+    let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build().map_err(|e| format!("error: {e}"))?;
+    let total: f64 = series.iter().map(Series::duration).sum();
+    let bar = ProgressBar::new(total.round() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("scan [{bar:30}] {pos}/{len} s of data, {per_sec} data-seconds, eta {eta}").expect("a valid template"),
+    );
+    let mut reports = Vec::new();
+    for s in &series {
+        let report = pool.install(|| scanner.scan(s, &|seconds| bar.inc(seconds.round() as u64))).map_err(|e| format!("error: {e}"))?;
+        reports.push(report);
+    }
+    bar.finish_and_clear();
+    let mut report = reports.remove(0);
+    for r in reports {
+        report.rows.extend(r.rows);
+        report.scanned_seconds += r.scanned_seconds;
+        report.skipped.extend(r.skipped);
+    }
+    report.skipped.append(&mut gaps);
+    report.skipped.sort_by(|x, y| x.gps_start.total_cmp(&y.gps_start));
+    let classes: Vec<String> = scanner.classifier().map_or(Vec::new(), |c| c.manifest.classes.clone());
+    let text = if format == "csv" { triggers_csv(&report, &classes) } else { triggers_json(&report, &classes) };
+    std::fs::write(&a.out, text).map_err(|e| format!("error: cannot write {}: {e}", a.out.display()))?;
+    if let Some(dir) = &a.plots {
+        plot_triggers(dir, &report, &classes)?;
+    }
+    print!("{}", summary(&report, &classes, total, started.elapsed().as_secs_f64()));
+    println!("wrote {} ({} triggers)", a.out.display(), report.rows.len());
+    Ok(())
+}
+
+/// The label and confidence of a row (empty and 0 without a classifier).
+fn label_of<'c>(row: &gwml_strain::scan::Row, classes: &'c [String]) -> (&'c str, f64) {
+    match &row.verdict {
+        Some(v) => (classes[v.label].as_str(), v.probabilities[v.label]),
+        None => ("", 0.0),
+    }
+}
+
+fn triggers_csv(report: &Report, classes: &[String]) -> String {
+    let mut out = String::from("gps_time,ifo,snr,peak_frequency,q,duration,label,confidence,start,end,f_start,f_end,tiles");
+    for c in classes {
+        let _ = write!(out, ",p_{}", c.to_lowercase().replace(' ', "_"));
+    }
+    out.push('\n');
+    for row in &report.rows {
+        let t = &row.trigger;
+        let (label, confidence) = label_of(row, classes);
+        let confidence = if row.verdict.is_some() { format!("{confidence:.4}") } else { String::new() };
+        let _ = write!(
+            out,
+            "{:.4},{},{:.3},{:.2},{:.2},{:.4},{},{},{:.4},{:.4},{:.2},{:.2},{}",
+            t.time,
+            report.ifo,
+            t.snr,
+            t.peak_frequency,
+            t.q,
+            t.duration(),
+            label,
+            confidence,
+            t.start,
+            t.end,
+            t.f_start,
+            t.f_end,
+            t.tiles
+        );
+        if let Some(v) = &row.verdict {
+            v.probabilities.iter().for_each(|p| {
+                let _ = write!(out, ",{p:.4}");
+            });
+        }
+        out.push('\n');
+    }
+    out
+}
+
+fn triggers_json(report: &Report, classes: &[String]) -> String {
+    let rows: Vec<serde_json::Value> = report
+        .rows
+        .iter()
+        .map(|row| {
+            let t = &row.trigger;
+            let (label, confidence) = label_of(row, classes);
+            let mut v = serde_json::json!({
+                "gps_time": t.time, "ifo": report.ifo, "snr": t.snr, "peak_frequency": t.peak_frequency,
+                "q": t.q, "duration": t.duration(), "start": t.start, "end": t.end,
+                "f_start": t.f_start, "f_end": t.f_end, "tiles": t.tiles,
+            });
+            if let Some(verdict) = &row.verdict {
+                v["label"] = label.into();
+                v["confidence"] = confidence.into();
+                v["probabilities"] = classes.iter().cloned().zip(verdict.probabilities.iter().copied()).collect();
+            }
+            v
+        })
+        .collect();
+    let skipped: Vec<serde_json::Value> = report
+        .skipped
+        .iter()
+        .map(|s| serde_json::json!({"gps_start": s.gps_start, "seconds": s.seconds, "reason": s.reason.describe()}))
+        .collect();
+    let doc = serde_json::json!({
+        "ifo": report.ifo, "scanned_seconds": report.scanned_seconds,
+        "tiled_band_hz": [report.tiled_band.0, report.tiled_band.1],
+        "classes": classes, "skipped": skipped, "triggers": rows,
+    });
+    serde_json::to_string_pretty(&doc).expect("JSON values") + "\n"
+}
+
+/// The summary printed after a scan.
+fn summary(report: &Report, classes: &[String], total: f64, elapsed: f64) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "scanned {:.0} s of {} data ({:.0} s in the files) in {:.2} s: {:.0}× real time; band {:.0}-{:.0} Hz",
+        report.scanned_seconds,
+        report.ifo,
+        total,
+        elapsed,
+        report.scanned_seconds / elapsed.max(1e-9),
+        report.tiled_band.0,
+        report.tiled_band.1
+    );
+    for (reason, seconds) in report.skipped_by_reason() {
+        let _ = writeln!(s, "skipped {seconds:.0} s: {}", reason.describe());
+    }
+    if report.skipped.iter().any(|k| k.reason == SkipReason::MissingSamples || k.reason == SkipReason::NoDataFlag) {
+        let spans: Vec<String> = report
+            .skipped
+            .iter()
+            .filter(|k| k.reason != SkipReason::SegmentEdges)
+            .take(5)
+            .map(|k| format!("GPS {:.0}+{:.0} s", k.gps_start, k.seconds))
+            .collect();
+        let _ = writeln!(s, "  first missing stretches: {}", spans.join(", "));
+    }
+    let mut counts = vec![0usize; classes.len()];
+    for row in &report.rows {
+        if let Some(v) = &row.verdict {
+            counts[v.label] += 1;
+        }
+    }
+    if classes.is_empty() {
+        let _ = writeln!(s, "{} triggers (not classified)", report.rows.len());
+    } else {
+        let per: Vec<String> = classes.iter().zip(&counts).map(|(c, n)| format!("{n} {c}")).collect();
+        let _ = writeln!(s, "{} triggers: {}", report.rows.len(), per.join(", "));
+    }
+    s
+}
+
+/// `DIR/triggers.png`: peak frequency against time, one colour per label.
+fn plot_triggers(dir: &Path, report: &Report, classes: &[String]) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("error: cannot create {}: {e}", dir.display()))?;
+    let t0 = report.rows.first().map_or(0.0, |r| r.trigger.time.floor());
+    let names: Vec<String> = if classes.is_empty() { vec!["trigger".into()] } else { classes.to_vec() };
+    let points: Vec<Vec<(f64, f64)>> = (0..names.len())
+        .map(|c| {
+            report
+                .rows
+                .iter()
+                .filter(|r| r.verdict.as_ref().map_or(0, |v| v.label) == c)
+                .map(|r| (r.trigger.time - t0, r.trigger.peak_frequency))
+                .collect()
+        })
+        .collect();
+    let series: Vec<(&str, &[(f64, f64)])> =
+        names.iter().zip(&points).filter(|(_, p)| !p.is_empty()).map(|(n, p)| (n.as_str(), p.as_slice())).collect();
+    let path = dir.join("triggers.png");
+    gwml_lab::plot::scatter_plot(
+        &path,
+        &format!("{} triggers of {}", report.rows.len(), report.ifo),
+        &format!("time since GPS {t0:.0} [s]"),
+        "peak frequency [Hz]",
+        &series,
+    )?;
+    println!("wrote {}", path.display());
+    Ok(())
+}

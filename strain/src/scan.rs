@@ -1,0 +1,449 @@
+//! `gwml scan`: strain in, classified glitch triggers out.
+//!
+//! Per good-data segment ([`crate::series::good_segments`]), in chunks of
+//! `chunk` seconds with `pad` seconds of margin on each side, in parallel:
+//! 1. the noise PSD by Welch's method ([`crate::psd`]) over the
+//!    `psd_stretch` seconds around the chunk, so a drifting PSD is followed;
+//! 2. whitening by that PSD with the gwml scene `models/whiten.gw` (a Tukey
+//!    taper over the outer half of each margin; the margins are discarded);
+//! 3. the Q-transform of the whitened chunk ([`crate::qtransform`]) and the
+//!    tiles in the chunk's kept middle above `tile_threshold`;
+//! 4. tiles clustered into triggers ([`crate::triggers`]), kept when the
+//!    loudest tile reaches `snr_threshold`;
+//! 5. the classifier on `duration_s` of strain whitened over its band,
+//!    centred on each trigger.
+//!
+//! Triggers that meet across a chunk boundary are merged.
+
+use crate::classifier::{Classifier, Verdict};
+use crate::psd::{Welch, WelchOptions};
+use crate::qtransform::{excess_power, tile_snr, QOptions, QTiling};
+use crate::series::{good_segments, Segment, Series, SkipReason, Skipped};
+use crate::triggers::{absorbed_into, cluster, Threshold, Tile, Trigger};
+use crate::Error;
+use gwml_compiler::Options;
+use gwml_runtime::{Model, Scene, Value};
+use num_complex::Complex64;
+use rayon::prelude::*;
+use realfft::RealFftPlanner;
+use std::collections::BTreeMap;
+use std::f64::consts::{LN_2, PI};
+
+/// The whitening scene.
+const WHITEN_SOURCE: &str = include_str!("../models/whiten.gw");
+
+/// Durations (s) over which tile energies are summed as excess power.
+const EXCESS_POWER_WINDOWS: [f64; 5] = [0.0625, 0.125, 0.25, 0.5, 1.0];
+
+/// Excess power is summed in the planes up to this Q (long glitches are
+/// broadband: Scratchy's arches, a Whistle's sweep).
+const EXCESS_POWER_MAX_Q: f64 = 12.0;
+
+/// Scan settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanOptions {
+    /// Triggers whose most significant tile has a lower SNR are dropped (Gravity Spy: 7.5).
+    pub snr_threshold: f64,
+    /// A trigger's most significant tile must also be this significant
+    /// (see [`Threshold`]): the false-alarm control for excess-power windows.
+    pub min_significance: f64,
+    /// Tiles this significant join clusters (they extend a trigger in time and frequency).
+    pub tile_threshold: f64,
+    /// Frequency band searched, in Hz (Gravity Spy: 10–2048 Hz).
+    pub f_range: (f64, f64),
+    /// Q range of the tiling.
+    pub q_range: (f64, f64),
+    /// Tile mismatch.
+    pub mismatch: f64,
+    /// Welch segment length in seconds.
+    pub fft_length: f64,
+    /// Seconds of data around each chunk its PSD is estimated from.
+    pub psd_stretch: f64,
+    /// Seconds of data each chunk adds to the scan (whole seconds).
+    pub chunk: f64,
+    /// Margin on each side of a chunk in seconds (whole seconds).
+    pub pad: f64,
+    /// Tiles this close (s) belong to one trigger.
+    pub cluster_gap: f64,
+}
+
+impl Default for ScanOptions {
+    fn default() -> Self {
+        ScanOptions {
+            snr_threshold: 7.5,
+            min_significance: 6.0,
+            tile_threshold: 5.0,
+            f_range: (10.0, 2048.0),
+            q_range: (4.0, 64.0),
+            mismatch: 0.2,
+            fft_length: 4.0,
+            psd_stretch: 128.0,
+            chunk: 64.0,
+            pad: 4.0,
+            cluster_gap: 0.1,
+        }
+    }
+}
+
+/// One trigger with its classification.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    /// Where and what.
+    pub trigger: Trigger,
+    /// The classifier's verdict (`None` without a classifier).
+    pub verdict: Option<Verdict>,
+}
+
+/// What a scan found and what it left out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// Detector.
+    pub ifo: String,
+    /// Triggers in time order.
+    pub rows: Vec<Row>,
+    /// Seconds whose tiles were searched.
+    pub scanned_seconds: f64,
+    /// Seconds not searched, with why.
+    pub skipped: Vec<Skipped>,
+    /// The frequency band actually tiled (the top is limited by Q and Nyquist).
+    pub tiled_band: (f64, f64),
+}
+
+impl Report {
+    /// Skipped seconds summed per reason.
+    pub fn skipped_by_reason(&self) -> BTreeMap<SkipReason, f64> {
+        let mut out = BTreeMap::new();
+        for s in &self.skipped {
+            *out.entry(s.reason).or_insert(0.0) += s.seconds;
+        }
+        out
+    }
+}
+
+/// One chunk of a segment: samples from `start` (of the series) for the
+/// chunk's length, of which `keep_from..keep_to` are searched.
+#[derive(Clone, Copy, Debug)]
+struct Chunk {
+    segment: Segment,
+    start: usize,
+    samples: usize,
+    keep_from: usize,
+    keep_to: usize,
+}
+
+/// A configured scanner: the whitening scenes compiled per chunk length.
+pub struct Scanner {
+    options: ScanOptions,
+    classifier: Option<Classifier>,
+    whiten: Model,
+}
+
+impl Scanner {
+    /// Checks the options and compiles what does not depend on the data.
+    pub fn new(options: ScanOptions, classifier: Option<Classifier>) -> Result<Scanner, Error> {
+        let o = &options;
+        let positive = [
+            ("--snr-threshold", o.snr_threshold),
+            ("tile threshold", o.tile_threshold),
+            ("minimum significance", o.min_significance),
+            ("FFT length", o.fft_length),
+            ("PSD stretch", o.psd_stretch),
+            ("chunk", o.chunk),
+            ("pad", o.pad),
+        ];
+        if let Some((name, v)) = positive.iter().find(|(_, v)| !(*v > 0.0 && v.is_finite())) {
+            return Err(Error::Data(format!("{name} must be positive and finite, got {v}")));
+        }
+        if !(o.f_range.0 >= 0.0 && o.f_range.1 > o.f_range.0) {
+            return Err(Error::Data(format!("--fmin {} must be below --fmax {}", o.f_range.0, o.f_range.1)));
+        }
+        if o.chunk.fract() != 0.0 || o.pad.fract() != 0.0 {
+            return Err(Error::Data("chunk and pad lengths must be whole seconds".into()));
+        }
+        let whiten = Model::from_source("whiten.gw", WHITEN_SOURCE).map_err(|e| Error::Data(e.render(false)))?;
+        Ok(Scanner { options, classifier, whiten })
+    }
+
+    /// The classifier, if any.
+    pub fn classifier(&self) -> Option<&Classifier> {
+        self.classifier.as_ref()
+    }
+
+    /// Shortest good-data segment worth whitening, in seconds.
+    pub fn min_segment(&self) -> f64 {
+        2.0 * self.options.pad + (2.0 * self.options.fft_length).max(8.0)
+    }
+
+    /// Scans one series; `progress` is told the seconds of each chunk done.
+    pub fn scan(&self, series: &Series, progress: &(dyn Fn(f64) + Sync)) -> Result<Report, Error> {
+        let o = &self.options;
+        let fs = series.sample_rate;
+        if !(fs > 0.0 && fs.is_finite()) || (fs.fract() != 0.0) {
+            return Err(Error::Data(format!("{}: the sample rate {fs} Hz must be a positive whole number", series.source)));
+        }
+        if let Some(c) = &self.classifier {
+            if c.manifest.sample_rate != fs {
+                return Err(Error::Data(format!(
+                    "{} is sampled at {fs} Hz but the classifier {} expects {} Hz",
+                    series.source,
+                    c.manifest.model.display(),
+                    c.manifest.sample_rate
+                )));
+            }
+        }
+        let (segments, mut skipped) = good_segments(series, self.min_segment());
+        let rate = fs as usize;
+        let pad = o.pad as usize * rate;
+        let mut chunks = Vec::new();
+        for seg in &segments {
+            let length = seg.end - seg.start;
+            let window = (((o.chunk + 2.0 * o.pad) as usize) * rate).min(length / rate * rate);
+            let keep = window - 2 * pad;
+            let mut start = seg.start;
+            let mut kept_to = seg.start + pad;
+            loop {
+                let start_at = start.min(seg.end - window);
+                let keep_from = kept_to.max(start_at + pad);
+                let keep_to = start_at + pad + keep;
+                if keep_to > keep_from {
+                    chunks.push(Chunk { segment: *seg, start: start_at, samples: window, keep_from, keep_to });
+                    kept_to = keep_to;
+                }
+                if start_at + window >= seg.end {
+                    break;
+                }
+                start += keep;
+            }
+            for (from, to) in [(seg.start, seg.start + pad), (seg.end - pad, seg.end)] {
+                skipped.push(Skipped {
+                    gps_start: series.gps_start + from as f64 / fs,
+                    seconds: (to - from) as f64 / fs,
+                    reason: SkipReason::SegmentEdges,
+                });
+            }
+        }
+        skipped.sort_by(|a, b| a.gps_start.total_cmp(&b.gps_start));
+        // One whitening scene and Q tiling per chunk length.
+        let mut lengths: Vec<usize> = chunks.iter().map(|c| c.samples).collect();
+        lengths.sort_unstable();
+        lengths.dedup();
+        let mut prepared = BTreeMap::new();
+        for &n in &lengths {
+            prepared.insert(n, self.prepare(n, fs)?);
+        }
+        let welch = Welch::new(fs, WelchOptions::seconds(o.fft_length, fs))?;
+        let results: Vec<Result<Vec<Row>, Error>> = chunks
+            .par_iter()
+            .map_init(
+                || prepared.iter().map(|(n, p)| (*n, p.whiten.bind())).collect::<BTreeMap<_, _>>(),
+                |runs, chunk| {
+                    let prep = &prepared[&chunk.samples];
+                    let run = runs.get_mut(&chunk.samples).expect("a run per chunk length");
+                    let rows = self.scan_chunk(series, chunk, prep, run, &welch);
+                    progress((chunk.keep_to - chunk.keep_from) as f64 / fs);
+                    rows
+                },
+            )
+            .collect();
+        let mut rows = Vec::new();
+        for r in results {
+            rows.extend(r?);
+        }
+        let tiled_band = prepared.values().next().map_or((o.f_range.0, o.f_range.1), |p| p.tiling.f_range);
+        Ok(Report {
+            ifo: series.detector.clone(),
+            rows: merge(rows, o.cluster_gap),
+            scanned_seconds: chunks.iter().map(|c| (c.keep_to - c.keep_from) as f64 / fs).sum(),
+            skipped,
+            tiled_band,
+        })
+    }
+
+    /// The whitening scene and tiling for chunks of `n` samples.
+    fn prepare(&self, n: usize, fs: f64) -> Result<Prepared, Error> {
+        let o = &self.options;
+        let duration = n as f64 / fs;
+        let band = self.classifier.as_ref().map_or((20.0, 2000.0), |c| c.manifest.band_hz);
+        let knobs = [
+            ("rate", format!("{fs:?} Hz")),
+            ("duration", format!("{duration:?} s")),
+            ("taper", format!("{:?} s", o.pad / 2.0)),
+            ("f_low", format!("{:?} Hz", o.f_range.0)),
+            ("f_high", format!("{:?} Hz", o.f_range.1)),
+            ("clf_low", format!("{:?} Hz", band.0)),
+            ("clf_high", format!("{:?} Hz", band.1)),
+        ];
+        let options = Options { knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(), ..Options::default() };
+        let whiten = self.whiten.scene_with(None, options).map_err(|e| Error::Data(e.render(false)))?;
+        let q = QOptions { q_range: o.q_range, f_range: o.f_range, mismatch: o.mismatch, plane_nyquist: true };
+        Ok(Prepared { whiten, tiling: QTiling::new(duration, fs, &q)? })
+    }
+
+    fn scan_chunk(
+        &self,
+        series: &Series,
+        chunk: &Chunk,
+        prep: &Prepared,
+        run: &mut gwml_runtime::Run,
+        welch: &Welch,
+    ) -> Result<Vec<Row>, Error> {
+        let o = &self.options;
+        let fs = series.sample_rate;
+        let n = chunk.samples;
+        let x = &series.samples[chunk.start..chunk.start + n];
+        // The PSD from the stretch around the chunk, inside its segment.
+        let half = (o.psd_stretch * fs / 2.0) as usize;
+        let centre = chunk.start + n / 2;
+        let (mut a, mut b) = (centre.saturating_sub(half).max(chunk.segment.start), (centre + half).min(chunk.segment.end));
+        if b - a < n {
+            (a, b) = (chunk.start, chunk.start + n);
+        }
+        let psd = welch.estimate(&series.samples[a..b])?;
+        let duration = n as f64 / fs;
+        let psd_grid = psd.resample(1.0 / duration, n / 2 + 1);
+        let fail = |e: gwml_runtime::Error| Error::Data(format!("whitening failed: {}", e.render(false)));
+        run.input_real("x", x).map_err(fail)?;
+        run.input_real("psd", &psd_grid).map_err(fail)?;
+        let out = run.forward().map_err(fail)?;
+        let real = |name: &str| match out.value(name) {
+            Ok(Value::RealArray(v)) => Ok(v.clone()),
+            _ => Err(Error::Data(format!("the whitening scene has no real array `{name}`"))),
+        };
+        let (w, w_clf) = (real("w")?, real("w_clf")?);
+        if let Some(i) = w.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Data(format!(
+                "whitening made a non-finite value at GPS {:.4} ({})",
+                series.gps_start + (chunk.start + i) as f64 / fs,
+                series.source
+            )));
+        }
+        let spectrum = real_fft(&w);
+        let t0 = series.gps_start + chunk.start as f64 / fs;
+        let (keep_from, keep_to) = ((chunk.keep_from - chunk.start) as f64 / fs, (chunk.keep_to - chunk.start) as f64 / fs);
+        let mut tiles = Vec::new();
+        for plane in &prep.tiling.planes {
+            for row in &plane.rows {
+                let energies = row.energies(&spectrum);
+                let dt = duration / row.tiles as f64;
+                let bandwidth = 2.0 * PI.sqrt() * row.frequency / row.q;
+                let kept = |t: f64| t >= keep_from && t < keep_to;
+                for (j, z) in energies.iter().enumerate() {
+                    let t = j as f64 * dt;
+                    let snr = tile_snr(*z);
+                    if snr >= o.tile_threshold && kept(t) {
+                        let duration = row.tile_duration();
+                        tiles.push(Tile { time: t0 + t, frequency: row.frequency, q: row.q, snr, significance: snr, duration, bandwidth });
+                    }
+                }
+                if plane.q > EXCESS_POWER_MAX_Q {
+                    continue;
+                }
+                // Excess power over windows of several durations.
+                let tau = row.correlation_time();
+                let mut prefix = Vec::with_capacity(energies.len() + 1);
+                prefix.push(0.0);
+                let mut acc = 0.0;
+                for z in &energies {
+                    acc += z * LN_2 - 1.0;
+                    prefix.push(acc);
+                }
+                for &window in EXCESS_POWER_WINDOWS.iter().filter(|w| **w >= 4.0 * tau) {
+                    let n = (window / dt).round() as usize;
+                    if n < 2 || n >= energies.len() {
+                        continue;
+                    }
+                    let stride = ((window / 16.0) / dt).round().max(1.0) as usize;
+                    for s in (0..energies.len() - n).step_by(stride) {
+                        let centre = (s as f64 + 0.5 * n as f64) * dt;
+                        if !kept(centre) {
+                            continue;
+                        }
+                        if let Some((snr, significance)) = excess_power(prefix[s + n] - prefix[s], dt, tau, n as f64 * dt, o.tile_threshold)
+                        {
+                            // The time of the excess energy around the window
+                            // (finer than its stride, and centred on a long
+                            // glitch whose envelope is flatter than the window).
+                            let mut time = centre;
+                            for _ in 0..3 {
+                                time = excess_centroid(&energies, dt, time - window, time + window).unwrap_or(time);
+                            }
+                            tiles.push(Tile {
+                                time: t0 + time,
+                                frequency: row.frequency,
+                                q: row.q,
+                                snr,
+                                significance,
+                                duration: n as f64 * dt,
+                                bandwidth,
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        cluster(tiles, o.cluster_gap, Threshold { snr: o.snr_threshold, significance: o.min_significance.min(o.snr_threshold) })
+            .into_iter()
+            .map(|trigger| {
+                let verdict = match &self.classifier {
+                    None => None,
+                    Some(c) => {
+                        let len = c.manifest.window().min(n);
+                        let centre = ((trigger.time - t0) * fs).round() as i64;
+                        let start = (centre - len as i64 / 2).clamp(0, (n - len) as i64) as usize;
+                        Some(c.classify(&w_clf[start..start + len])?)
+                    }
+                };
+                Ok(Row { trigger, verdict })
+            })
+            .collect()
+    }
+}
+
+/// The centroid in time of a row's strong excess energy (median-normalised
+/// energies `z`, every `dt` s) between `from` and `to` s: each tile weighted
+/// by how far its mean-normalised energy exceeds twice the noise mean, so
+/// noise tiles barely pull it. `None` without such tiles.
+fn excess_centroid(energies: &[f64], dt: f64, from: f64, to: f64) -> Option<f64> {
+    let a = (from / dt).ceil().max(0.0) as usize;
+    let b = ((to / dt).floor().max(0.0) as usize + 1).min(energies.len());
+    let (mut w, mut wt) = (0.0, 0.0);
+    for (k, z) in energies.iter().enumerate().take(b).skip(a) {
+        let excess = (z * LN_2 - 2.0).max(0.0);
+        w += excess;
+        wt += excess * k as f64 * dt;
+    }
+    (w > 0.0).then(|| wt / w)
+}
+
+/// A chunk length's compiled whitening scene and tiling.
+struct Prepared {
+    whiten: Scene,
+    tiling: QTiling,
+}
+
+/// The one-sided spectrum of a real series.
+fn real_fft(x: &[f64]) -> Vec<Complex64> {
+    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(x.len());
+    let mut input = x.to_vec();
+    let mut out = fft.make_output_vec();
+    fft.process(&mut input, &mut out).expect("buffer lengths from the plan");
+    out
+}
+
+/// Merges rows of neighbouring chunks where a trigger was cut by a chunk
+/// boundary: a trigger whose peak lies in a more significant one's span
+/// joins it ([`absorbed_into`]), whose verdict stands.
+fn merge(rows: Vec<Row>, gap: f64) -> Vec<Row> {
+    let triggers: Vec<Trigger> = rows.iter().map(|r| r.trigger.clone()).collect();
+    let into = absorbed_into(&triggers, gap);
+    let mut out: Vec<Option<Row>> = rows.into_iter().map(Some).collect();
+    for (i, target) in into.iter().enumerate() {
+        if let Some(k) = *target {
+            let t = out[i].take().expect("absorbed once").trigger;
+            out[k].as_mut().expect("targets are kept").trigger.join(&t);
+        }
+    }
+    let mut out: Vec<Row> = out.into_iter().flatten().collect();
+    out.sort_by(|a, b| a.trigger.time.total_cmp(&b.trigger.time));
+    out
+}
