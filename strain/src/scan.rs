@@ -17,13 +17,12 @@
 
 use crate::classifier::{Classifier, Verdict};
 use crate::psd::{Welch, WelchOptions};
-use crate::qtransform::{excess_power, tile_snr, QOptions, QTiling};
+use crate::qtransform::{tile_snr, ExcessPower, QOptions, QTiling, RowBuffers};
 use crate::series::{good_segments, Segment, Series, SkipReason, Skipped};
 use crate::triggers::{absorbed_into, cluster, Threshold, Tile, Trigger};
 use crate::Error;
 use gwml_compiler::Options;
 use gwml_runtime::{Model, Scene, Value};
-use num_complex::Complex64;
 use rayon::prelude::*;
 use realfft::RealFftPlanner;
 use std::collections::BTreeMap;
@@ -136,6 +135,8 @@ pub struct Scanner {
     options: ScanOptions,
     classifier: Option<Classifier>,
     whiten: Model,
+    /// Compiled scenes and tilings by (sample rate in mHz, chunk samples).
+    prepared: std::sync::Mutex<BTreeMap<(u64, usize), std::sync::Arc<Prepared>>>,
 }
 
 impl Scanner {
@@ -161,7 +162,7 @@ impl Scanner {
             return Err(Error::Data("chunk and pad lengths must be whole seconds".into()));
         }
         let whiten = Model::from_source("whiten.gw", WHITEN_SOURCE).map_err(|e| Error::Data(e.render(false)))?;
-        Ok(Scanner { options, classifier, whiten })
+        Ok(Scanner { options, classifier, whiten, prepared: Default::default() })
     }
 
     /// The classifier, if any.
@@ -229,7 +230,7 @@ impl Scanner {
         lengths.dedup();
         let mut prepared = BTreeMap::new();
         for &n in &lengths {
-            prepared.insert(n, self.prepare(n, fs)?);
+            prepared.insert(n, self.prepared(n, fs)?);
         }
         let welch = Welch::new(fs, WelchOptions::seconds(o.fft_length, fs))?;
         let results: Vec<Result<Vec<Row>, Error>> = chunks
@@ -259,6 +260,25 @@ impl Scanner {
         })
     }
 
+    /// Compiles the whitening scene for full chunks of data at `sample_rate`
+    /// ahead of [`Scanner::scan`] (e.g. while the strain is being read).
+    pub fn warm_up(&self, sample_rate: f64) -> Result<(), Error> {
+        let n = ((self.options.chunk + 2.0 * self.options.pad) * sample_rate).round() as usize;
+        self.prepared(n, sample_rate).map(|_| ())
+    }
+
+    /// The whitening scene and tiling for chunks of `n` samples, compiled
+    /// once.
+    fn prepared(&self, n: usize, fs: f64) -> Result<std::sync::Arc<Prepared>, Error> {
+        let key = ((fs * 1000.0).round() as u64, n);
+        if let Some(p) = self.prepared.lock().expect("no panics while locked").get(&key) {
+            return Ok(p.clone());
+        }
+        let p = std::sync::Arc::new(self.prepare(n, fs)?);
+        self.prepared.lock().expect("no panics while locked").insert(key, p.clone());
+        Ok(p)
+    }
+
     /// The whitening scene and tiling for chunks of `n` samples.
     fn prepare(&self, n: usize, fs: f64) -> Result<Prepared, Error> {
         let o = &self.options;
@@ -275,8 +295,9 @@ impl Scanner {
         ];
         let options = Options { knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(), ..Options::default() };
         let whiten = self.whiten.scene_with(None, options).map_err(|e| Error::Data(e.render(false)))?;
-        let q = QOptions { q_range: o.q_range, f_range: o.f_range, mismatch: o.mismatch, plane_nyquist: true };
-        Ok(Prepared { whiten, tiling: QTiling::new(duration, fs, &q)? })
+        let q = QOptions { q_range: o.q_range, f_range: o.f_range, mismatch: o.mismatch, smooth_sizes: true, plane_nyquist: true };
+        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+        Ok(Prepared { whiten, tiling: QTiling::new(duration, fs, &q)?, fft })
     }
 
     fn scan_chunk(
@@ -317,20 +338,30 @@ impl Scanner {
                 series.source
             )));
         }
-        let spectrum = real_fft(&w);
+        let mut input = w.clone();
+        let mut spectrum = prep.fft.make_output_vec();
+        prep.fft.process(&mut input, &mut spectrum).map_err(|e| Error::Data(format!("FFT failed: {e}")))?;
         let t0 = series.gps_start + chunk.start as f64 / fs;
         let (keep_from, keep_to) = ((chunk.keep_from - chunk.start) as f64 / fs, (chunk.keep_to - chunk.start) as f64 / fs);
         let mut tiles = Vec::new();
+        let mut buffers = RowBuffers::default();
+        let mut energies = Vec::new();
+        let mut prefix = Vec::new();
+        // A tile passes when tile_snr(z) ≥ threshold, i.e. z ≥ this.
+        let z_pass = (1.0 + 0.5 * o.tile_threshold * o.tile_threshold) / LN_2;
         for plane in &prep.tiling.planes {
             for row in &plane.rows {
-                let energies = row.energies(&spectrum);
+                row.energies_into(&spectrum, &mut buffers, &mut energies, 4, true);
                 let dt = duration / row.tiles as f64;
                 let bandwidth = 2.0 * PI.sqrt() * row.frequency / row.q;
                 let kept = |t: f64| t >= keep_from && t < keep_to;
                 for (j, z) in energies.iter().enumerate() {
+                    if *z < z_pass {
+                        continue;
+                    }
                     let t = j as f64 * dt;
                     let snr = tile_snr(*z);
-                    if snr >= o.tile_threshold && kept(t) {
+                    if kept(t) {
                         let duration = row.tile_duration();
                         tiles.push(Tile { time: t0 + t, frequency: row.frequency, q: row.q, snr, significance: snr, duration, bandwidth });
                     }
@@ -340,7 +371,7 @@ impl Scanner {
                 }
                 // Excess power over windows of several durations.
                 let tau = row.correlation_time();
-                let mut prefix = Vec::with_capacity(energies.len() + 1);
+                prefix.clear();
                 prefix.push(0.0);
                 let mut acc = 0.0;
                 for z in &energies {
@@ -352,14 +383,14 @@ impl Scanner {
                     if n < 2 || n >= energies.len() {
                         continue;
                     }
-                    let stride = ((window / 16.0) / dt).round().max(1.0) as usize;
+                    let stride = ((window / 4.0) / dt).round().max(1.0) as usize;
+                    let excess = ExcessPower::new(dt, tau, n as f64 * dt, o.tile_threshold);
                     for s in (0..energies.len() - n).step_by(stride) {
                         let centre = (s as f64 + 0.5 * n as f64) * dt;
                         if !kept(centre) {
                             continue;
                         }
-                        if let Some((snr, significance)) = excess_power(prefix[s + n] - prefix[s], dt, tau, n as f64 * dt, o.tile_threshold)
-                        {
+                        if let Some((snr, significance)) = excess.test(prefix[s + n] - prefix[s]) {
                             // The time of the excess energy around the window
                             // (finer than its stride, and centred on a long
                             // glitch whose envelope is flatter than the window).
@@ -419,15 +450,7 @@ fn excess_centroid(energies: &[f64], dt: f64, from: f64, to: f64) -> Option<f64>
 struct Prepared {
     whiten: Scene,
     tiling: QTiling,
-}
-
-/// The one-sided spectrum of a real series.
-fn real_fft(x: &[f64]) -> Vec<Complex64> {
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(x.len());
-    let mut input = x.to_vec();
-    let mut out = fft.make_output_vec();
-    fft.process(&mut input, &mut out).expect("buffer lengths from the plan");
-    out
+    fft: std::sync::Arc<dyn realfft::RealToComplex<f64>>,
 }
 
 /// Merges rows of neighbouring chunks where a trigger was cut by a chunk
