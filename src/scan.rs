@@ -282,6 +282,8 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     bar.finish_and_clear();
     let mut report = reports.remove(0);
     for r in reports {
+        let (a, b) = (&mut report.stage_seconds, r.stage_seconds);
+        (a.psd, a.whiten, a.tiles, a.classify) = (a.psd + b.psd, a.whiten + b.whiten, a.tiles + b.tiles, a.classify + b.classify);
         report.rows.extend(r.rows);
         report.scanned_seconds += r.scanned_seconds;
         report.skipped.extend(r.skipped);
@@ -295,9 +297,15 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
         plot_triggers(dir, &report, &classes)?;
     }
     print!("{}", summary(&report, &classes, total, started.elapsed().as_secs_f64()));
+    let st = report.stage_seconds;
     println!(
-        "time: reading (and compiling alongside) {read_seconds:.2} s, scanning {:.2} s",
-        started.elapsed().as_secs_f64() - read_seconds
+        "time: reading (and compiling alongside) {read_seconds:.2} s, scanning {:.2} s on {threads} threads \
+         (CPU s: PSD {:.2}, whitening {:.2}, Q tiles {:.2}, classifier {:.2})",
+        started.elapsed().as_secs_f64() - read_seconds,
+        st.psd,
+        st.whiten,
+        st.tiles,
+        st.classify
     );
     println!("wrote {} ({} triggers)", a.out.display(), report.rows.len());
     Ok(())

@@ -106,6 +106,35 @@ pub struct Report {
     pub skipped: Vec<Skipped>,
     /// The frequency band actually tiled (the top is limited by Q and Nyquist).
     pub tiled_band: (f64, f64),
+    /// CPU seconds per stage, summed over chunks and threads.
+    pub stage_seconds: StageSeconds,
+}
+
+/// CPU seconds spent in each stage of a scan (summed over threads).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StageSeconds {
+    /// Welch PSD estimates.
+    pub psd: f64,
+    /// Whitening (the gwml scene, both bands).
+    pub whiten: f64,
+    /// Q tiles, excess power and clustering.
+    pub tiles: f64,
+    /// The classifier.
+    pub classify: f64,
+}
+
+/// Nanoseconds per stage, added to from every worker.
+#[derive(Default)]
+struct StageClock([std::sync::atomic::AtomicU64; 4]);
+
+impl StageClock {
+    fn add(&self, stage: usize, since: std::time::Instant) {
+        self.0[stage].fetch_add(since.elapsed().as_nanos() as u64, std::sync::atomic::Ordering::Relaxed);
+    }
+    fn seconds(&self) -> StageSeconds {
+        let s = |i: usize| self.0[i].load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
+        StageSeconds { psd: s(0), whiten: s(1), tiles: s(2), classify: s(3) }
+    }
 }
 
 impl Report {
@@ -233,6 +262,7 @@ impl Scanner {
             prepared.insert(n, self.prepared(n, fs)?);
         }
         let welch = Welch::new(fs, WelchOptions::seconds(o.fft_length, fs))?;
+        let clock = StageClock::default();
         let results: Vec<Result<Vec<Row>, Error>> = chunks
             .par_iter()
             .map_init(
@@ -240,7 +270,7 @@ impl Scanner {
                 |runs, chunk| {
                     let prep = &prepared[&chunk.samples];
                     let run = runs.get_mut(&chunk.samples).expect("a run per chunk length");
-                    let rows = self.scan_chunk(series, chunk, prep, run, &welch);
+                    let rows = self.scan_chunk(series, chunk, prep, run, &welch, &clock);
                     progress((chunk.keep_to - chunk.keep_from) as f64 / fs);
                     rows
                 },
@@ -254,9 +284,11 @@ impl Scanner {
         Ok(Report {
             ifo: series.detector.clone(),
             rows: merge(rows, o.cluster_gap),
-            scanned_seconds: chunks.iter().map(|c| (c.keep_to - c.keep_from) as f64 / fs).sum(),
+            // 0.0 + …: an empty sum of floats is -0.0.
+            scanned_seconds: 0.0 + chunks.iter().map(|c| (c.keep_to - c.keep_from) as f64 / fs).sum::<f64>(),
             skipped,
             tiled_band,
+            stage_seconds: clock.seconds(),
         })
     }
 
@@ -307,7 +339,9 @@ impl Scanner {
         prep: &Prepared,
         run: &mut gwml_runtime::Run,
         welch: &Welch,
+        clock: &StageClock,
     ) -> Result<Vec<Row>, Error> {
+        let mut since = std::time::Instant::now();
         let o = &self.options;
         let fs = series.sample_rate;
         let n = chunk.samples;
@@ -322,6 +356,8 @@ impl Scanner {
         let psd = welch.estimate(&series.samples[a..b])?;
         let duration = n as f64 / fs;
         let psd_grid = psd.resample(1.0 / duration, n / 2 + 1);
+        clock.add(0, since);
+        since = std::time::Instant::now();
         let fail = |e: gwml_runtime::Error| Error::Data(format!("whitening failed: {}", e.render(false)));
         run.input_real("x", x).map_err(fail)?;
         run.input_real("psd", &psd_grid).map_err(fail)?;
@@ -338,6 +374,8 @@ impl Scanner {
                 series.source
             )));
         }
+        clock.add(1, since);
+        since = std::time::Instant::now();
         let mut input = w.clone();
         let mut spectrum = prep.fft.make_output_vec();
         prep.fft.process(&mut input, &mut spectrum).map_err(|e| Error::Data(format!("FFT failed: {e}")))?;
@@ -412,7 +450,11 @@ impl Scanner {
                 }
             }
         }
-        cluster(tiles, o.cluster_gap, Threshold { snr: o.snr_threshold, significance: o.min_significance.min(o.snr_threshold) })
+        let triggers =
+            cluster(tiles, o.cluster_gap, Threshold { snr: o.snr_threshold, significance: o.min_significance.min(o.snr_threshold) });
+        clock.add(2, since);
+        since = std::time::Instant::now();
+        let rows = triggers
             .into_iter()
             .map(|trigger| {
                 let verdict = match &self.classifier {
@@ -426,7 +468,9 @@ impl Scanner {
                 };
                 Ok(Row { trigger, verdict })
             })
-            .collect()
+            .collect();
+        clock.add(3, since);
+        rows
     }
 }
 

@@ -1,0 +1,97 @@
+//! `gwml data strain` and `gwml scan` from the command line: bad inputs are
+//! one-line errors with exit status 1 (never a panic), missing data is a
+//! reported skip, and the outputs hold no NaN.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn gwml(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_gwml")).args(args).output().expect("gwml runs")
+}
+
+fn fixture(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/strain").join(name).display().to_string()
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("gwml-scan-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// Exit status 1 and one line on standard error containing `needle`.
+fn fails_with(out: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "status {:?}, stderr {err}", out.status);
+    assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
+    assert!(err.contains(needle), "{err:?} lacks {needle:?}");
+}
+
+fn strain(name: &str, args: &[&str]) -> String {
+    let path = temp(name).display().to_string();
+    let mut all = vec!["data", "strain", "--out", &path];
+    all.extend_from_slice(args);
+    let out = gwml(&all);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    path
+}
+
+#[test]
+fn broken_files_are_one_line_errors() {
+    let csv = temp("t.csv").display().to_string();
+    for (file, needle) in [
+        ("gwosc_truncated.hdf5", "truncated"),
+        ("not_hdf5.hdf5", "not an HDF5 file"),
+        ("gwosc_missing_xspacing.hdf5", "missing attribute `Xspacing`"),
+        ("no_such_file.hdf5", "cannot read"),
+    ] {
+        fails_with(&gwml(&["scan", &fixture(file), "--out", &csv]), needle);
+    }
+    // A .npy needs its rate and start.
+    let npy = fixture("gwosc_contiguous.strain.npy");
+    fails_with(&gwml(&["scan", &npy, "--out", &csv]), "--sample-rate and --gps-start");
+}
+
+#[test]
+fn a_sample_rate_the_classifier_was_not_trained_for_is_an_error() {
+    let csv = temp("rate.csv").display().to_string();
+    // 512 Hz against the shipped classifier's 4096 Hz.
+    fails_with(&gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--out", &csv]), "expects 4096 Hz");
+}
+
+#[test]
+fn missing_data_and_file_gaps_are_reported_skips_overlaps_are_errors() {
+    let a = strain("a.hdf5", &["--duration", "48", "--seed", "1", "--gap", "20:4", "--gps-start", "1000000000"]);
+    let b = strain("b.hdf5", &["--duration", "48", "--seed", "2", "--gps-start", "1000000050"]);
+    let c = strain("c.hdf5", &["--duration", "48", "--seed", "3", "--gps-start", "1000000040"]);
+    let json = temp("gaps.json").display().to_string();
+    let out = gwml(&["scan", &a, &b, "--no-classify", "--out", &json]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("skipped 4 s: data-quality bit 0 (DATA) clear"), "{stdout}");
+    assert!(stdout.contains("skipped 2 s: no file covers them"), "{stdout}");
+    let text = std::fs::read_to_string(&json).unwrap();
+    assert!(!text.contains("NaN") && !text.contains("nan"), "{text}");
+    let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(doc["skipped"].as_array().unwrap().iter().any(|s| s["reason"] == "no file covers them"));
+    // c overlaps a (starts at 40 s, a ends at 48 s).
+    fails_with(&gwml(&["scan", &a, &c, "--no-classify", "--out", &json]), "overlaps");
+
+    // All samples missing: nothing scanned, nothing written but the header.
+    let empty = strain("empty.hdf5", &["--duration", "32", "--gap", "0:32", "--glitch-rate", "0"]);
+    let csv = temp("empty.csv").display().to_string();
+    let out = gwml(&["scan", &empty, "--no-classify", "--out", &csv]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("scanned 0 s"));
+    assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 1);
+}
+
+#[test]
+fn bad_arguments_are_one_line_errors() {
+    let out = temp("x.hdf5").display().to_string();
+    fails_with(&gwml(&["data", "strain", "--duration", "10", "--out", &out]), "--duration 10");
+    fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--gap", "60:10"]), "--gap 60:10");
+    fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--snr", "30..8"]), "SNR");
+    let csv = temp("bad.txt").display().to_string();
+    fails_with(&gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--out", &csv]), "write .csv or .json");
+}
