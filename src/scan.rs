@@ -7,8 +7,8 @@ use gwml_lab::strain::{simulate, write_truth, NoiseCurve, StrainOptions};
 use gwml_lab::synth::GlitchClass;
 use gwml_strain::classifier::{Classifier, Manifest};
 use gwml_strain::gwosc::{self, StrainFile, WriteOptions};
-use gwml_strain::scan::{Report, ScanOptions, Scanner};
-use gwml_strain::series::{join, Series, SkipReason};
+use gwml_strain::scan::{merge_rows, Report, ScanOptions, Scanner};
+use gwml_strain::series::{plan, Series, SkipReason, Span};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -164,6 +164,11 @@ pub struct ScanArgs {
     /// Directory for plots: triggers in time and frequency, coloured by label.
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
+    /// Seconds of strain held in memory at a time: files are read and
+    /// scanned in blocks this long, overlapping by 8 s (memory stays bounded
+    /// whatever the files' length).
+    #[arg(long, value_name = "SECONDS", default_value_t = 1024.0)]
+    pub block: f64,
     /// .npy input: samples per second.
     #[arg(long, value_name = "HZ")]
     pub sample_rate: Option<f64>,
@@ -175,8 +180,43 @@ pub struct ScanArgs {
     pub ifo: String,
 }
 
-/// Reads one strain file into a series.
-fn read_strain(path: &Path, a: &ScanArgs) -> Result<Series, String> {
+/// A strain input: an HDF5 file read a window at a time, or a `.npy` held whole.
+enum Source {
+    File(gwosc::Reader),
+    Memory(Series),
+}
+
+impl Source {
+    fn span(&self) -> Span {
+        match self {
+            Source::File(r) => Span {
+                detector: r.detector.clone(),
+                gps_start: r.gps_start,
+                sample_rate: r.sample_rate,
+                samples: r.samples,
+                source: r.path().display().to_string(),
+            },
+            Source::Memory(s) => s.span(),
+        }
+    }
+
+    fn dq(&self) -> Option<&[u32]> {
+        match self {
+            Source::File(r) => r.dq_mask.as_deref(),
+            Source::Memory(s) => s.dq.as_deref(),
+        }
+    }
+
+    fn read(&self, start: usize, count: usize) -> Result<Vec<f64>, String> {
+        match self {
+            Source::File(r) => r.read_samples(start, count).map_err(|e| format!("error: {e}")),
+            Source::Memory(s) => Ok(s.samples[start.min(s.samples.len())..(start + count).min(s.samples.len())].to_vec()),
+        }
+    }
+}
+
+/// Opens one strain input (an HDF5 file's metadata, or a whole `.npy`).
+fn open_strain(path: &Path, a: &ScanArgs) -> Result<Source, String> {
     let is_npy = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"));
     if is_npy {
         let (Some(rate), Some(gps)) = (a.sample_rate, a.gps_start) else {
@@ -186,27 +226,67 @@ fn read_strain(path: &Path, a: &ScanArgs) -> Result<Series, String> {
         if data.complex {
             return Err(format!("error: {}: strain must be real, the file holds complex numbers", path.display()));
         }
-        return Ok(Series {
+        return Ok(Source::Memory(Series {
             detector: a.ifo.clone(),
             gps_start: gps,
             sample_rate: rate,
             samples: data.values.iter().map(|c| c.re).collect(),
             dq: None,
             source: path.display().to_string(),
-        });
+        }));
     }
     if a.sample_rate.is_some() || a.gps_start.is_some() {
         return Err(format!("error: {}: --sample-rate and --gps-start are for .npy files; an HDF5 file carries its own", path.display()));
     }
-    let f = gwosc::read(path).map_err(|e| format!("error: {e}"))?;
-    Ok(Series {
-        detector: f.detector,
-        gps_start: f.gps_start,
-        sample_rate: f.sample_rate,
-        samples: f.samples,
-        dq: f.dq_mask,
-        source: path.display().to_string(),
-    })
+    gwosc::open(path).map(Source::File).map_err(|e| format!("error: {e}"))
+}
+
+/// Consecutive inputs read as one stretch, a block at a time.
+struct Run<'s> {
+    parts: Vec<&'s Source>,
+    span: Span,
+    /// The DQ words of the whole run (one per second), if every part has them.
+    dq: Option<Vec<u32>>,
+}
+
+impl<'s> Run<'s> {
+    fn new(sources: &'s [Source], indices: &[usize]) -> Run<'s> {
+        let parts: Vec<&Source> = indices.iter().map(|&i| &sources[i]).collect();
+        let first = parts[0].span();
+        let samples = parts.iter().map(|p| p.span().samples).sum();
+        let whole = parts.iter().all(|p| {
+            let s = p.span();
+            (s.samples as f64 / s.sample_rate).fract() == 0.0
+        });
+        let dq = parts.iter().map(|p| p.dq().map(<[u32]>::to_vec)).collect::<Option<Vec<_>>>().filter(|_| whole).map(|v| v.concat());
+        let source = parts.iter().map(|p| p.span().source).collect::<Vec<_>>().join(" + ");
+        Run { span: Span { samples, source, ..first }, parts, dq }
+    }
+
+    /// Samples `start..start + count` of the run as a series.
+    fn block(&self, start: usize, count: usize) -> Result<Series, String> {
+        let mut samples = Vec::with_capacity(count);
+        let mut offset = 0;
+        for part in &self.parts {
+            let n = part.span().samples;
+            let (a, b) = (start.max(offset), (start + count).min(offset + n));
+            if a < b {
+                samples.extend(part.read(a - offset, b - a)?);
+            }
+            offset += n;
+        }
+        let fs = self.span.sample_rate;
+        let (s0, s1) = ((start as f64 / fs) as usize, ((start + count) as f64 / fs).ceil() as usize);
+        let aligned = (start as f64 / fs).fract() == 0.0;
+        Ok(Series {
+            detector: self.span.detector.clone(),
+            gps_start: self.span.gps_start + start as f64 / fs,
+            sample_rate: fs,
+            samples,
+            dq: self.dq.as_ref().filter(|_| aligned).map(|d| d[s0.min(d.len())..s1.min(d.len())].to_vec()),
+            source: self.span.source.clone(),
+        })
+    }
 }
 
 /// The classifier the arguments ask for.
@@ -247,6 +327,9 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
         Some("json") => "json",
         _ => return Err(format!("error: --out {}: write .csv or .json", a.out.display())),
     };
+    if !(a.block >= 64.0 && a.block.is_finite()) {
+        return Err(format!("error: --block {}: blocks of at least 64 s are needed", a.block));
+    }
     let options = ScanOptions {
         snr_threshold: a.snr_threshold,
         f_range: (a.fmin, a.fmax),
@@ -254,30 +337,72 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
         fft_length: a.fft_length,
         ..ScanOptions::default()
     };
-    // Read the files while the classifier and the whitening scene for
-    // 4096 Hz data (GWOSC's usual rate) compile.
-    let (parts, scanner) = std::thread::scope(|scope| {
-        let reading = scope.spawn(|| a.strain.iter().map(|p| read_strain(p, &a)).collect::<Result<Vec<_>, _>>());
+    // Open the files and read the first block while the classifier and the
+    // whitening scene for 4096 Hz data (GWOSC's usual rate) compile.
+    let (opened, scanner) = std::thread::scope(|scope| {
+        let opening = scope.spawn(|| -> Result<_, String> {
+            let sources = a.strain.iter().map(|p| open_strain(p, &a)).collect::<Result<Vec<_>, _>>()?;
+            let spans: Vec<Span> = sources.iter().map(Source::span).collect();
+            let (runs, gaps) = plan(&spans).map_err(|e| format!("error: {e}"))?;
+            let first = Run::new(&sources, &runs[0]).block(0, (a.block * spans[runs[0][0]].sample_rate) as usize)?;
+            Ok((sources, runs, gaps, first))
+        });
         let scanner = classifier(&a).and_then(|c| Scanner::new(options, c).map_err(|e| format!("error: {e}")));
         if let Ok(s) = &scanner {
             let _ = s.warm_up(a.sample_rate.unwrap_or(4096.0));
         }
-        (reading.join().expect("the reading thread does not panic"), scanner)
+        (opening.join().expect("the opening thread does not panic"), scanner)
     });
-    let (parts, scanner) = (parts?, scanner?);
-    let read_seconds = started.elapsed().as_secs_f64();
-    let (series, mut gaps) = join(parts).map_err(|e| format!("error: {e}"))?;
+    let ((sources, runs, mut gaps, first), scanner) = (opened?, scanner?);
+    let mut first = Some(first);
+    let setup_seconds = started.elapsed().as_secs_f64();
+    let spans: Vec<Span> = sources.iter().map(Source::span).collect();
+    let runs: Vec<Run> = runs.iter().map(|r| Run::new(&sources, r)).collect();
     let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build().map_err(|e| format!("error: {e}"))?;
-    let total: f64 = series.iter().map(Series::duration).sum();
+    let total: f64 = spans.iter().map(|s| s.samples as f64 / s.sample_rate).sum();
     let bar = ProgressBar::new(total.round() as u64);
     bar.set_style(
         ProgressStyle::with_template("scan [{bar:30}] {pos}/{len} s of data, {per_sec} data-seconds, eta {eta}").expect("a valid template"),
     );
     let mut reports = Vec::new();
-    for s in &series {
-        let report = pool.install(|| scanner.scan(s, &|seconds| bar.inc(seconds.round() as u64))).map_err(|e| format!("error: {e}"))?;
-        reports.push(report);
+    for run in &runs {
+        // Blocks overlapping by twice the margin, so every margin but the
+        // run's own ends is searched in one of them; the next block is read
+        // while this one is scanned.
+        let fs = run.span.sample_rate;
+        let block = (a.block * fs) as usize;
+        let overlap = (2.0 * scanner.margin() * fs) as usize;
+        let n = run.span.samples;
+        let mut starts = vec![0];
+        while starts[starts.len() - 1] + block < n {
+            starts.push(starts[starts.len() - 1] + block - overlap);
+        }
+        // No last block too short to whiten: the one before reaches the end.
+        if starts.len() > 1 && ((n - starts[starts.len() - 1]) as f64) < scanner.min_segment() * fs + overlap as f64 {
+            starts.pop();
+        }
+        let length = |k: usize| starts.get(k + 1).map_or(n - starts[k], |next| next + overlap - starts[k]);
+        // The first block of the first run was read during set-up (at full
+        // length or the run's, which is what `length(0)` is then too).
+        let mut next = Some(match first.take().filter(|b| b.samples.len() == length(0)) {
+            Some(block) => block,
+            None => run.block(starts[0], length(0))?,
+        });
+        for k in 0..starts.len() {
+            let series = next.take().expect("read ahead");
+            let open = (k > 0, k + 1 < starts.len());
+            let (report, ahead) = std::thread::scope(|scope| {
+                let ahead = starts.get(k + 1).map(|&s| {
+                    let len = length(k + 1);
+                    scope.spawn(move || run.block(s, len))
+                });
+                let report = pool.install(|| scanner.scan_block(&series, open, &|seconds| bar.inc(seconds.round() as u64)));
+                (report, ahead.map(|h| h.join().expect("the reading thread does not panic")))
+            });
+            reports.push(report.map_err(|e| format!("error: {e}"))?);
+            next = ahead.transpose()?;
+        }
     }
     bar.finish_and_clear();
     let mut report = reports.remove(0);
@@ -288,6 +413,7 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
         report.scanned_seconds += r.scanned_seconds;
         report.skipped.extend(r.skipped);
     }
+    report.rows = merge_rows(std::mem::take(&mut report.rows), ScanOptions::default().cluster_gap);
     report.skipped.append(&mut gaps);
     report.skipped.sort_by(|x, y| x.gps_start.total_cmp(&y.gps_start));
     let classes: Vec<String> = scanner.classifier().map_or(Vec::new(), |c| c.manifest.classes.clone());
@@ -299,9 +425,9 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     print!("{}", summary(&report, &classes, total, started.elapsed().as_secs_f64()));
     let st = report.stage_seconds;
     println!(
-        "time: reading (and compiling alongside) {read_seconds:.2} s, scanning {:.2} s on {threads} threads \
+        "time: reading the first block and compiling {setup_seconds:.2} s, reading and scanning {:.2} s on {threads} threads \
          (CPU s: PSD {:.2}, whitening {:.2}, Q tiles {:.2}, classifier {:.2})",
-        started.elapsed().as_secs_f64() - read_seconds,
+        started.elapsed().as_secs_f64() - setup_seconds,
         st.psd,
         st.whiten,
         st.tiles,

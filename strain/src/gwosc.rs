@@ -59,14 +59,65 @@ pub struct WriteOptions {
     pub gzip_level: u8,
 }
 
-/// Reads a GWOSC strain file, checking every field it uses.
+/// Reads a GWOSC strain file whole, checking every field it uses.
 pub fn read(path: &Path) -> Result<StrainFile, Error> {
+    let reader = open(path)?;
+    let samples = reader.read_samples(0, reader.samples)?;
+    let Reader { detector, gps_start, sample_rate, dq_mask, dq_names, .. } = reader;
+    Ok(StrainFile { detector, gps_start, sample_rate, samples, dq_mask, dq_names })
+}
+
+/// An open GWOSC file: its metadata, checked, and its strain read a window
+/// at a time (chunks are fetched from disk on demand, so memory follows
+/// the window, not the file).
+pub struct Reader {
+    path: std::path::PathBuf,
+    file: File,
+    /// `meta/Detector`.
+    pub detector: String,
+    /// GPS time of the first sample.
+    pub gps_start: f64,
+    /// Samples per second.
+    pub sample_rate: f64,
+    /// Samples in `strain/Strain`.
+    pub samples: usize,
+    /// `quality/simple/DQmask`, one word per second, if present.
+    pub dq_mask: Option<Vec<u32>>,
+    /// `quality/simple/DQShortnames` (empty if absent).
+    pub dq_names: Vec<String>,
+}
+
+impl Reader {
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Samples `start..start + count` of `strain/Strain` (clipped to the file).
+    pub fn read_samples(&self, start: usize, count: usize) -> Result<Vec<f64>, Error> {
+        let fail = |message: String| Error::file(&self.path, message);
+        // Each window is read once: keep no decompressed chunks around.
+        let once = hdf5_pure::DatasetAccessProperties::new().with_chunk_cache(hdf5_pure::ChunkCacheConfig::disabled());
+        let strain = self.file.dataset_with_options("strain/Strain", once).map_err(|e| fail(format!("no dataset `strain/Strain`: {e}")))?;
+        let count = count.min(self.samples.saturating_sub(start));
+        let values = strain
+            .read_f64_rows(start as u64, count as u64)
+            .map_err(|e| fail(format!("cannot read samples {start}..{} of `strain/Strain` (truncated?): {e}", start + count)))?;
+        if values.len() != count {
+            return Err(fail(format!("`strain/Strain` gave {} of samples {start}..{}", values.len(), start + count)));
+        }
+        Ok(values)
+    }
+}
+
+/// Opens a GWOSC strain file and checks its metadata.
+pub fn open(path: &Path) -> Result<Reader, Error> {
     let fail = |message: String| Error::file(path, message);
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
-    if !hdf5_pure::is_hdf5_bytes(&bytes) {
+    let is_hdf5 = hdf5_pure::is_hdf5(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    if !is_hdf5 {
         return Err(fail("not an HDF5 file (no HDF5 signature)".into()));
     }
-    let file = File::from_bytes(bytes).map_err(|e| fail(format!("not a readable HDF5 file (truncated or corrupt?): {e}")))?;
+    let file = File::open_streaming(path).map_err(|e| fail(format!("not a readable HDF5 file (truncated or corrupt?): {e}")))?;
     let strain = file.dataset("strain/Strain").map_err(|e| fail(format!("no dataset `strain/Strain`: {e}")))?;
     let attrs = strain.attrs().map_err(|e| fail(format!("cannot read the attributes of `strain/Strain`: {e}")))?;
     let number = |name: &str| -> Result<f64, Error> {
@@ -86,16 +137,16 @@ pub fn read(path: &Path) -> Result<StrainFile, Error> {
     // whole rate when it is within rounding of one.
     let sample_rate = if (sample_rate - sample_rate.round()).abs() < 1e-6 { sample_rate.round() } else { sample_rate };
     let shape = strain.shape().map_err(|e| fail(format!("cannot read the shape of `strain/Strain`: {e}")))?;
-    if shape.len() != 1 {
+    let [samples] = shape[..] else {
         return Err(fail(format!("`strain/Strain` has shape {shape:?}; strain is one-dimensional")));
-    }
-    let samples = strain.read_f64().map_err(|e| fail(format!("cannot read `strain/Strain` as float64: {e}")))?;
-    if samples.is_empty() {
+    };
+    let samples = samples as usize;
+    if samples == 0 {
         return Err(fail("`strain/Strain` is empty".into()));
     }
     if let Some(n) = attrs.get("Npoints").and_then(attr_number) {
-        if n as usize != samples.len() {
-            return Err(fail(format!("`strain/Strain` has {} samples but its attribute `Npoints` says {n}", samples.len())));
+        if n as usize != samples {
+            return Err(fail(format!("`strain/Strain` has {samples} samples but its attribute `Npoints` says {n}")));
         }
     }
     let detector = match file.dataset("meta/Detector") {
@@ -114,7 +165,7 @@ pub fn read(path: &Path) -> Result<StrainFile, Error> {
             }
         }
     }
-    let seconds = (samples.len() as f64 / sample_rate).ceil() as usize;
+    let seconds = (samples as f64 / sample_rate).ceil() as usize;
     let dq_mask = match file.dataset("quality/simple/DQmask") {
         Err(_) => None,
         Ok(ds) => {
@@ -132,7 +183,7 @@ pub fn read(path: &Path) -> Result<StrainFile, Error> {
         Ok(ds) => ds.read_string().unwrap_or_default().into_iter().map(|s| s.trim().to_string()).collect(),
         Err(_) => Vec::new(),
     };
-    Ok(StrainFile { detector, gps_start, sample_rate, samples, dq_mask, dq_names })
+    Ok(Reader { path: path.to_path_buf(), file, detector, gps_start, sample_rate, samples, dq_mask, dq_names })
 }
 
 /// The value of a numeric attribute (a scalar or a one-element array).

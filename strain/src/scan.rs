@@ -199,6 +199,11 @@ impl Scanner {
         self.classifier.as_ref()
     }
 
+    /// The margin (s) at each end of a segment that is not searched.
+    pub fn margin(&self) -> f64 {
+        self.options.pad
+    }
+
     /// Shortest good-data segment worth whitening, in seconds.
     pub fn min_segment(&self) -> f64 {
         2.0 * self.options.pad + (2.0 * self.options.fft_length).max(8.0)
@@ -206,6 +211,14 @@ impl Scanner {
 
     /// Scans one series; `progress` is told the seconds of each chunk done.
     pub fn scan(&self, series: &Series, progress: &(dyn Fn(f64) + Sync)) -> Result<Report, Error> {
+        self.scan_block(series, (false, false), progress)
+    }
+
+    /// Scans a block of a longer stretch: an end marked open continues in a
+    /// neighbouring block that overlaps this one by twice the margin
+    /// ([`Scanner::margin`]), so its margin is searched there and is not
+    /// reported as skipped. Merge the blocks' rows with [`merge_rows`].
+    pub fn scan_block(&self, series: &Series, open: (bool, bool), progress: &(dyn Fn(f64) + Sync)) -> Result<Report, Error> {
         let o = &self.options;
         let fs = series.sample_rate;
         if !(fs > 0.0 && fs.is_finite()) || (fs.fract() != 0.0) {
@@ -244,7 +257,11 @@ impl Scanner {
                 }
                 start += keep;
             }
+            let n_all = series.samples.len();
             for (from, to) in [(seg.start, seg.start + pad), (seg.end - pad, seg.end)] {
+                if (from == 0 && open.0) || (to == n_all && open.1) {
+                    continue;
+                }
                 skipped.push(Skipped {
                     gps_start: series.gps_start + from as f64 / fs,
                     seconds: (to - from) as f64 / fs,
@@ -283,7 +300,7 @@ impl Scanner {
         let tiled_band = prepared.values().next().map_or((o.f_range.0, o.f_range.1), |p| p.tiling.f_range);
         Ok(Report {
             ifo: series.detector.clone(),
-            rows: merge(rows, o.cluster_gap),
+            rows: merge_rows(rows, o.cluster_gap),
             // 0.0 + …: an empty sum of floats is -0.0.
             scanned_seconds: 0.0 + chunks.iter().map(|c| (c.keep_to - c.keep_from) as f64 / fs).sum::<f64>(),
             skipped,
@@ -497,10 +514,10 @@ struct Prepared {
     fft: std::sync::Arc<dyn realfft::RealToComplex<f64>>,
 }
 
-/// Merges rows of neighbouring chunks where a trigger was cut by a chunk
-/// boundary: a trigger whose peak lies in a more significant one's span
-/// joins it ([`absorbed_into`]), whose verdict stands.
-fn merge(rows: Vec<Row>, gap: f64) -> Vec<Row> {
+/// Merges rows of neighbouring chunks (or blocks) where a trigger was cut by
+/// a boundary: a trigger whose peak lies in a more significant one's peak
+/// tile (± `gap`) joins it ([`absorbed_into`]), whose verdict stands.
+pub fn merge_rows(rows: Vec<Row>, gap: f64) -> Vec<Row> {
     let triggers: Vec<Trigger> = rows.iter().map(|r| r.trigger.clone()).collect();
     let into = absorbed_into(&triggers, gap);
     let mut out: Vec<Option<Row>> = rows.into_iter().map(Some).collect();

@@ -82,18 +82,57 @@ pub struct Segment {
     pub end: usize,
 }
 
-/// Joins series of one detector given in any order: consecutive ones are
-/// concatenated, a gap starts a new series (reported as skipped seconds),
-/// an overlap, a second detector or a different sample rate is an error.
-pub fn join(mut parts: Vec<Series>) -> Result<(Vec<Series>, Vec<Skipped>), Error> {
-    parts.sort_by(|a, b| a.gps_start.total_cmp(&b.gps_start));
-    let mut out: Vec<Series> = Vec::new();
+/// Where a stretch of strain lies, without its samples: what joining files
+/// needs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Span {
+    /// Detector name.
+    pub detector: String,
+    /// GPS time of the first sample.
+    pub gps_start: f64,
+    /// Samples per second.
+    pub sample_rate: f64,
+    /// Number of samples.
+    pub samples: usize,
+    /// File name, for messages.
+    pub source: String,
+}
+
+impl Span {
+    fn gps_end(&self) -> f64 {
+        self.gps_start + self.samples as f64 / self.sample_rate
+    }
+}
+
+impl Series {
+    /// Its [`Span`].
+    pub fn span(&self) -> Span {
+        Span {
+            detector: self.detector.clone(),
+            gps_start: self.gps_start,
+            sample_rate: self.sample_rate,
+            samples: self.samples.len(),
+            source: self.source.clone(),
+        }
+    }
+}
+
+/// Orders stretches of one detector given in any order into runs of
+/// consecutive ones (indices into `spans`, in time order); a gap starts a
+/// new run (reported as skipped seconds); an overlap, a second detector or a
+/// different sample rate is an error.
+pub fn plan(spans: &[Span]) -> Result<(Vec<Vec<usize>>, Vec<Skipped>), Error> {
+    let mut order: Vec<usize> = (0..spans.len()).collect();
+    order.sort_by(|&a, &b| spans[a].gps_start.total_cmp(&spans[b].gps_start));
+    let mut runs: Vec<Vec<usize>> = Vec::new();
     let mut skipped = Vec::new();
-    for part in parts {
-        let Some(last) = out.last_mut() else {
-            out.push(part);
+    for i in order {
+        let part = &spans[i];
+        let Some(&j) = runs.last().and_then(|r| r.last()) else {
+            runs.push(vec![i]);
             continue;
         };
+        let last = &spans[j];
         if part.detector != last.detector {
             return Err(Error::Data(format!(
                 "{} is from detector {} but {} is from {}: scan one detector at a time",
@@ -122,17 +161,36 @@ pub fn join(mut parts: Vec<Series>) -> Result<(Vec<Series>, Vec<Skipped>), Error
         }
         if gap > tolerance {
             skipped.push(Skipped { gps_start: last.gps_end(), seconds: gap, reason: SkipReason::GapBetweenFiles });
-            out.push(part);
-            continue;
+            runs.push(vec![i]);
+        } else {
+            runs.last_mut().expect("a run").push(i);
         }
-        let seconds = |s: &Series| s.samples.len() / s.sample_rate.round().max(1.0) as usize;
-        let whole_seconds = seconds(last);
-        match (&mut last.dq, part.dq) {
-            (Some(a), Some(b)) if a.len() == whole_seconds => a.extend(b),
-            (dq, _) => *dq = None,
+    }
+    Ok((runs, skipped))
+}
+
+/// Joins series of one detector given in any order ([`plan`]): consecutive
+/// ones are concatenated (their DQ masks too, when every part has one of
+/// whole seconds).
+pub fn join(parts: Vec<Series>) -> Result<(Vec<Series>, Vec<Skipped>), Error> {
+    let spans: Vec<Span> = parts.iter().map(Series::span).collect();
+    let (runs, skipped) = plan(&spans)?;
+    let mut parts: Vec<Option<Series>> = parts.into_iter().map(Some).collect();
+    let mut out = Vec::new();
+    for run in runs {
+        let mut it = run.into_iter().map(|i| parts[i].take().expect("each part in one run"));
+        let mut joined = it.next().expect("runs are not empty");
+        for part in it {
+            let whole_seconds = |s: &Series| (s.samples.len() as f64 / s.sample_rate).fract() == 0.0;
+            let whole = whole_seconds(&joined);
+            match (&mut joined.dq, part.dq) {
+                (Some(a), Some(b)) if whole => a.extend(b),
+                (dq, _) => *dq = None,
+            }
+            joined.samples.extend_from_slice(&part.samples);
+            joined.source = format!("{} + {}", joined.source, part.source);
         }
-        last.samples.extend_from_slice(&part.samples);
-        last.source = format!("{} + {}", last.source, part.source);
+        out.push(joined);
     }
     Ok((out, skipped))
 }
