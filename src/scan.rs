@@ -6,7 +6,7 @@ use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate, write_truth, NoiseCurve, StrainOptions};
 use gwml_lab::synth::GlitchClass;
 use gwml_strain::classifier::{Classifier, Manifest};
-use gwml_strain::gwosc::{self, StrainFile, WriteOptions};
+use gwml_strain::gwosc::{self, WriteOptions};
 use gwml_strain::scan::{merge_rows, Report, ScanOptions, Scanner};
 use gwml_strain::series::{plan, Series, SkipReason, Span};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -98,22 +98,14 @@ pub fn data_strain(a: StrainArgs) -> Result<(), String> {
         return Err(format!("error: --ifo `{}` must be a detector name such as H1", a.ifo));
     }
     let (series, injections) = simulate(&options).map_err(render)?;
-    let file = StrainFile {
-        detector: series.detector,
-        gps_start: series.gps_start,
-        sample_rate: series.sample_rate,
-        samples: series.samples,
-        dq_mask: series.dq,
-        dq_names: Vec::new(),
-    };
     let write = WriteOptions { chunk: (!a.uncompressed).then_some(16_384), gzip_level: 4 };
-    gwosc::write(&a.out, &file, &write).map_err(|e| format!("error: {e}"))?;
+    gwosc::write(&a.out, &series, &write).map_err(|e| format!("error: {e}"))?;
     println!(
         "wrote {}: {} s of {} strain at {} Hz from GPS {}, {} injections",
         a.out.display(),
         a.duration,
         a.ifo,
-        file.sample_rate,
+        series.sample_rate,
         a.gps_start,
         injections.len()
     );

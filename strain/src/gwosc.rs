@@ -14,6 +14,7 @@
 //! Read and written with `hdf5-pure`, a pure-Rust HDF5 implementation, so no
 //! system HDF5 library is needed.
 
+use crate::series::Series;
 use crate::Error;
 use hdf5_pure::{AttrValue, File, FileBuilder};
 use std::path::Path;
@@ -32,23 +33,6 @@ const DQ_DESCRIPTIONS: [&str; 7] = [
     "Passes the burst CAT3 test",
 ];
 
-/// One GWOSC strain file's contents.
-#[derive(Clone, Debug, PartialEq)]
-pub struct StrainFile {
-    /// `meta/Detector`, e.g. `H1`.
-    pub detector: String,
-    /// `strain/Strain@Xstart`: GPS time of the first sample.
-    pub gps_start: f64,
-    /// `1 / strain/Strain@Xspacing`, in Hz.
-    pub sample_rate: f64,
-    /// `strain/Strain`; NaN where data are missing.
-    pub samples: Vec<f64>,
-    /// `quality/simple/DQmask`, one word per second, if the file has one.
-    pub dq_mask: Option<Vec<u32>>,
-    /// `quality/simple/DQShortnames` (empty if absent; written as [`DQ_NAMES`]).
-    pub dq_names: Vec<String>,
-}
-
 /// How to store the strain.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WriteOptions {
@@ -60,11 +44,11 @@ pub struct WriteOptions {
 }
 
 /// Reads a GWOSC strain file whole, checking every field it uses.
-pub fn read(path: &Path) -> Result<StrainFile, Error> {
+pub fn read(path: &Path) -> Result<Series, Error> {
     let reader = open(path)?;
     let samples = reader.read_samples(0, reader.samples)?;
-    let Reader { detector, gps_start, sample_rate, dq_mask, dq_names, .. } = reader;
-    Ok(StrainFile { detector, gps_start, sample_rate, samples, dq_mask, dq_names })
+    let Reader { detector, gps_start, sample_rate, dq_mask, .. } = reader;
+    Ok(Series { detector, gps_start, sample_rate, samples, dq: dq_mask, source: path.display().to_string() })
 }
 
 /// An open GWOSC file: its metadata, checked, and its strain read a window
@@ -201,8 +185,9 @@ fn attr_number(value: &AttrValue) -> Option<f64> {
     }
 }
 
-/// Writes `file` in GWOSC's layout (DQ names are always [`DQ_NAMES`]).
-pub fn write(path: &Path, file: &StrainFile, options: &WriteOptions) -> Result<(), Error> {
+/// Writes a series in GWOSC's layout (its DQ mask, or every bit set
+/// without one; the DQ names are [`DQ_NAMES`]).
+pub fn write(path: &Path, file: &Series, options: &WriteOptions) -> Result<(), Error> {
     let fail = |message: String| Error::file(path, message);
     if file.detector.is_empty() || !(file.sample_rate > 0.0 && file.sample_rate.is_finite()) || !file.gps_start.is_finite() {
         return Err(fail(format!(
@@ -212,7 +197,7 @@ pub fn write(path: &Path, file: &StrainFile, options: &WriteOptions) -> Result<(
     }
     let duration = file.samples.len() as f64 / file.sample_rate;
     let seconds = duration.ceil() as usize;
-    let dq: Vec<u32> = match &file.dq_mask {
+    let dq: Vec<u32> = match &file.dq {
         Some(mask) if mask.len() == seconds => mask.clone(),
         Some(mask) => return Err(fail(format!("a DQ mask of {} entries for {seconds} s of strain", mask.len()))),
         None => vec![127; seconds],

@@ -1,7 +1,8 @@
 //! The GWOSC reader against files h5py wrote in GWOSC's layout
 //! (`scripts/strain_fixtures.py`), the writer by round trip, and bad files.
 
-use gwml_strain::gwosc::{read, write, StrainFile, WriteOptions, DQ_NAMES};
+use gwml_strain::gwosc::{open, read, write, WriteOptions, DQ_NAMES};
+use gwml_strain::series::Series;
 use std::path::{Path, PathBuf};
 
 fn fixture(name: &str) -> PathBuf {
@@ -31,8 +32,8 @@ fn h5py_files_read_exactly_contiguous_and_chunked_gzip() {
         assert_eq!(got.gps_start, want["gps_start"].as_f64().unwrap(), "{file}");
         assert_eq!(got.sample_rate, want["sample_rate"].as_f64().unwrap(), "{file}");
         assert!(same_bits(&got.samples, &npy::<f64>(&format!("{stem}.strain.npy"))), "{file}: samples differ");
-        assert_eq!(got.dq_mask.as_deref(), Some(&npy::<u32>(&format!("{stem}.dq.npy"))[..]), "{file}");
-        assert_eq!(got.dq_names, DQ_NAMES.to_vec(), "{file}");
+        assert_eq!(got.dq.as_deref(), Some(&npy::<u32>(&format!("{stem}.dq.npy"))[..]), "{file}");
+        assert_eq!(open(&fixture(file)).unwrap().dq_names, DQ_NAMES.to_vec(), "{file}");
         let nan_seconds: Vec<usize> =
             (0..got.samples.len() / got.sample_rate as usize).filter(|s| got.samples[s * got.sample_rate as usize].is_nan()).collect();
         let want_nan: Vec<usize> = want["nan_seconds"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as usize).collect();
@@ -46,13 +47,13 @@ fn written_files_read_back_bit_for_bit() {
     std::fs::create_dir_all(&dir).unwrap();
     let mut samples: Vec<f64> = (0..4096 * 3).map(|j| 1e-21 * ((j as f64) * 0.37).sin()).collect();
     samples[4096..4096 + 100].iter_mut().for_each(|v| *v = f64::NAN);
-    let file = StrainFile {
+    let file = Series {
         detector: "V1".into(),
         gps_start: 1_187_008_866.0,
         sample_rate: 4096.0,
         samples,
-        dq_mask: Some(vec![127, 0, 63]),
-        dq_names: DQ_NAMES.iter().map(|s| s.to_string()).collect(),
+        dq: Some(vec![127, 0, 63]),
+        source: "test".into(),
     };
     for (name, chunk) in [("contiguous.hdf5", None), ("chunked.hdf5", Some(1000))] {
         let path = dir.join(name);
@@ -60,8 +61,8 @@ fn written_files_read_back_bit_for_bit() {
         let back = read(&path).unwrap();
         assert!(same_bits(&back.samples, &file.samples), "{name}");
         assert_eq!(
-            (back.detector.as_str(), back.gps_start, back.sample_rate, back.dq_mask.as_deref()),
-            ("V1", file.gps_start, 4096.0, file.dq_mask.as_deref()),
+            (back.detector.as_str(), back.gps_start, back.sample_rate, back.dq.as_deref()),
+            ("V1", file.gps_start, 4096.0, file.dq.as_deref()),
             "{name}"
         );
     }
