@@ -32,7 +32,7 @@ use std::f64::consts::{LN_2, PI};
 const WHITEN_SOURCE: &str = include_str!("../models/whiten.gw");
 
 /// Durations (s) over which tile energies are summed as excess power.
-const EXCESS_POWER_WINDOWS: [f64; 5] = [0.0625, 0.125, 0.25, 0.5, 1.0];
+const EXCESS_POWER_WINDOWS: [f64; 4] = [0.125, 0.25, 0.5, 1.0];
 
 /// Excess power is summed in the planes up to this Q (long glitches are
 /// broadband: Scratchy's arches, a Whistle's sweep).
@@ -406,7 +406,7 @@ impl Scanner {
         let z_pass = (1.0 + 0.5 * o.tile_threshold * o.tile_threshold) / LN_2;
         for plane in &prep.tiling.planes {
             for row in &plane.rows {
-                row.energies_into(&spectrum, &mut buffers, &mut energies, 4, true);
+                row.energies_into(&spectrum, &mut buffers, &mut energies, 8, true);
                 let dt = duration / row.tiles as f64;
                 let bandwidth = 2.0 * PI.sqrt() * row.frequency / row.q;
                 let kept = |t: f64| t >= keep_from && t < keep_to;
