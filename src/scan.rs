@@ -132,10 +132,10 @@ pub struct ScanArgs {
     /// Report triggers without classifying them.
     #[arg(long, conflicts_with_all = ["model", "weights"])]
     pub no_classify: bool,
-    /// Where to write triggers: .csv or .json [default: triggers.csv].
+    /// Where to write triggers: .csv or .json.
     #[arg(long, value_name = "triggers.csv|triggers.json", default_value = "triggers.csv")]
     pub out: PathBuf,
-    /// Minimum SNR of a trigger's loudest tile.
+    /// Minimum SNR of a trigger's most significant tile.
     #[arg(long, default_value_t = 7.5)]
     pub snr_threshold: f64,
     /// Lowest frequency searched (Hz).
