@@ -16,6 +16,10 @@ Writes, into fixtures/strain/ (run with numpy 2, scipy 1.17, h5py 3, gwpy 4):
   gwosc_expected.json: the metadata;
 - bad files: gwosc_truncated.hdf5 (the first 3000 bytes of the contiguous
   file), gwosc_missing_xspacing.hdf5, not_hdf5.hdf5;
+- qscan_input.npy and qscan_expected.json: gwpy's QTiling (Q 4-64,
+  20-400 Hz, mismatch 0.2) over 8 s of white noise with a sine-Gaussian:
+  each plane's rows, tile counts and peak (median-normalised energy,
+  time, frequency);
 - welch_input.npy and welch_expected.json: scipy.signal.welch of coloured
   noise with a line, 64 s at 256 Hz, Hann window, half overlap, for
   nperseg 256 and 1024, average median and mean, detrend 'constant' and
@@ -112,6 +116,28 @@ def fixtures():
                                           average=average, detrend=detrend, scaling="density", return_onesided=True)
                 cases.append(dict(nperseg=nperseg, average=average, detrend=bool(detrend), df=float(f[1] - f[0]), psd=[float(v) for v in p]))
     (OUT / "welch_expected.json").write_text(json.dumps(dict(scipy=scipy.__version__, fs=fs, cases=cases)) + "\n")
+    # Q-transform: white noise with a sine-Gaussian (f0 100 Hz, Q 10, t0
+    # 4.2 s), 8 s at 1024 Hz, through gwpy's q_scan (the raw QTiling: no
+    # whitening, no interpolation): each plane's frequency rows and peak.
+    from gwpy.signal.qtransform import QTiling
+    from gwpy.timeseries import TimeSeries
+
+    fs, n = 1024.0, 8 * 1024
+    t = np.arange(n) / fs
+    tau = 10 / (np.sqrt(2) * np.pi * 100.0)
+    h = np.exp(-(((t - 4.2) / tau) ** 2)) * np.cos(2 * np.pi * 100.0 * (t - 4.2))
+    q = rng.standard_normal(n) + 20 * h / np.sqrt(np.sum(h * h))
+    np.save(OUT / "qscan_input.npy", q)
+    ts = TimeSeries(q, sample_rate=fs, t0=0)
+    tiling = QTiling(abs(ts.span), fs, qrange=(4, 64), frange=(20, 400), mismatch=0.2)
+    planes = []
+    for plane in tiling:
+        energies = plane.transform(ts.fft().value, epoch=0).energies
+        best = max(((float(e.value.max()), float(e.t0.value + e.dt.value * int(e.value.argmax())), float(f))
+                    for f, e in zip(plane.frequencies, energies)), key=lambda x: x[0])
+        planes.append(dict(q=float(plane.q), frequencies=[float(f) for f in plane.frequencies],
+                           ntiles=[int(e.size) for e in energies], peak_energy=best[0], peak_time=best[1], peak_frequency=best[2]))
+    (OUT / "qscan_expected.json").write_text(json.dumps(dict(fs=fs, frange=list(tiling.frange), planes=planes)) + "\n")
     for p in sorted(OUT.iterdir()):
         print(f"wrote {p.relative_to(OUT.parent.parent)} ({p.stat().st_size} bytes)")
 

@@ -190,7 +190,9 @@ impl QTiling {
         let qs = log_steps(qmin, qmax, std::f64::consts::SQRT_2, delta);
         let q_low = qs[0];
         let f_top = sample_rate / 2.0 / (1.0 + 11f64.sqrt() / q_low);
-        let f_low = o.f_range.0.max(50.0 * qs[qs.len() - 1] / (TAU * duration));
+        // As gwpy: a zero lower frequency becomes the lowest whose tiles in
+        // the largest Q still fit the segment, 50 Q_max / (2π T).
+        let f_low = if o.f_range.0 > 0.0 { o.f_range.0 } else { 50.0 * qs[qs.len() - 1] / (TAU * duration) };
         let f_high = o.f_range.1.min(f_top);
         if !(f_low > 0.0 && f_high > f_low) {
             return bad(format!(
@@ -205,9 +207,14 @@ impl QTiling {
             .map(|&q| {
                 let step = 1.0 / duration;
                 let top = if o.plane_nyquist { o.f_range.1.min(sample_rate / 2.0 / (1.0 + 11f64.sqrt() / q)) } else { f_high };
-                let rows = log_steps(f_low, top, 2.0 / (2.0 + q * q).sqrt(), delta)
+                let mut frequencies: Vec<f64> = log_steps(f_low, top, 2.0 / (2.0 + q * q).sqrt(), delta)
                     .into_iter()
                     .map(|f| ((f / step).floor() * step).max(step))
+                    .collect();
+                // Rounding to the resolution can repeat a frequency: one row each.
+                frequencies.dedup();
+                let rows = frequencies
+                    .into_iter()
                     .map(|frequency| {
                         let q_prime = q / 11f64.sqrt();
                         let half = (frequency / q_prime * duration).floor() as i64;
