@@ -41,8 +41,19 @@ impl InterpResult {
 /// Evaluates `func` with params (base units) and inputs (base units; one
 /// `Tensor` each, real inputs with zero imaginary parts).
 pub fn interpret(func: &Function, params: &[f64], inputs: &[Tensor]) -> InterpResult {
+    interpret_only(func, params, inputs, &vec![true; func.insts.len()])
+}
+
+/// [`interpret`] for the instructions `wanted` marks (each of whose operands
+/// must be wanted too); the others are left empty. The compiler folds
+/// grid-only values this way without evaluating the rest of a scene.
+pub fn interpret_only(func: &Function, params: &[f64], inputs: &[Tensor], wanted: &[bool]) -> InterpResult {
     let mut values: Vec<Tensor> = Vec::with_capacity(func.insts.len());
-    for inst in &func.insts {
+    for (inst, wanted) in func.insts.iter().zip(wanted) {
+        if !wanted {
+            values.push(Tensor::new());
+            continue;
+        }
         let len = func.len_of(inst.ty.shape);
         let get = |v: Value, i: usize| -> C64 {
             let t: &Tensor = &values[v.index()];

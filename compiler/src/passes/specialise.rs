@@ -40,21 +40,21 @@ fn grid_only_flags(func: &Function) -> Vec<bool> {
     g
 }
 
-/// Values of every instruction with params set to NaN and inputs to zero:
-/// exact for grid-only values, which depend on neither.
-fn evaluate_all(func: &Function) -> Vec<Vec<f64>> {
-    let inputs: Vec<interp::Tensor> =
-        func.inputs.iter().map(|i| vec![num_complex::Complex64::new(0.0, 0.0); func.len_of(i.ty.shape)]).collect();
-    let r = interp::interpret(func, &vec![f64::NAN; func.params.len()], &inputs);
+/// Values of the grid-only instructions (`grid_only`, from
+/// [`grid_only_flags`]), which depend on neither params nor inputs; the
+/// others are left empty.
+fn evaluate_grid_only(func: &Function, grid_only: &[bool]) -> Vec<Vec<f64>> {
+    let r = interp::interpret_only(func, &vec![f64::NAN; func.params.len()], &vec![Vec::new(); func.inputs.len()], grid_only);
     r.values.into_iter().map(|t| t.into_iter().map(|z| z.re).collect()).collect()
 }
 
 /// Splits powers of products and folds grid-only arrays into tables.
-/// Scenes whose grids are too large to evaluate within
+/// Scenes whose grid-only values are too large to evaluate within
 /// [`interp::EVAL_BUDGET`] are left as they are.
 pub fn specialise(func: &Function) -> Function {
     let longest = func.grids.iter().map(|g| g.len).max().unwrap_or(1);
-    if func.insts.len().saturating_mul(longest) > interp::EVAL_BUDGET {
+    let folded = grid_only_flags(func).iter().filter(|g| **g).count();
+    if folded.saturating_mul(longest) > interp::EVAL_BUDGET {
         return func.clone();
     }
     let split = split_powers(func);
@@ -63,7 +63,7 @@ pub fn specialise(func: &Function) -> Function {
 
 fn split_powers(func: &Function) -> Function {
     let grid_only = grid_only_flags(func);
-    let values = evaluate_all(func);
+    let values = evaluate_grid_only(func, &grid_only);
     let mut header = func.clone();
     header.insts.clear();
     let mut b = Builder::new(header, true);
@@ -207,7 +207,7 @@ fn tabulate(func: &Function) -> Function {
             }
         }
     }
-    let values = evaluate_all(func);
+    let values = evaluate_grid_only(func, &grid_only);
     let mut out = func.clone();
     for (i, inst) in func.insts.iter().enumerate() {
         let cheap = matches!(inst.op, Op::Const(_) | Op::ConstComplex(..) | Op::GridCoord(_) | Op::Table(_) | Op::Broadcast(..));
