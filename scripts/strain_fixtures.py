@@ -19,7 +19,9 @@ Writes, into fixtures/strain/ (run with numpy 2, scipy 1.17, h5py 3, gwpy 4):
 - qscan_input.npy and qscan_expected.json: gwpy's QTiling (Q 4-64,
   20-400 Hz, mismatch 0.2) over 8 s of white noise with a sine-Gaussian:
   each plane's rows, tile counts and peak (median-normalised energy,
-  time, frequency);
+  time, frequency); qimage_expected.json: gwpy's q_transform image of the
+  same data (loudest plane, 1000 times x 500 log frequencies), its maximum
+  and a coarse grid of its values;
 - welch_input.npy and welch_expected.json: scipy.signal.welch of coloured
   noise with a line, 64 s at 256 Hz, Hann window, half overlap, for
   nperseg 256 and 1024, average median and mean, detrend 'constant' and
@@ -138,6 +140,21 @@ def fixtures():
         planes.append(dict(q=float(plane.q), frequencies=[float(f) for f in plane.frequencies],
                            ntiles=[int(e.size) for e in energies], peak_energy=best[0], peak_time=best[1], peak_frequency=best[2]))
     (OUT / "qscan_expected.json").write_text(json.dumps(dict(fs=fs, frange=list(tiling.frange), planes=planes)) + "\n")
+    # The same data through gwpy's q_transform (the image: loudest plane
+    # within 0.5 s of 4.2 s, rows interpolated onto 1000 times over
+    # 3.7-4.7 s and 500 log-spaced frequencies); no whitening (white noise).
+    img = ts.q_transform(qrange=(4, 64), frange=(20, 400), mismatch=0.2, whiten=False, gps=4.2, search=0.5,
+                         outseg=(3.7, 4.7), logf=True)
+    v = np.asarray(img.value, dtype=float)
+    i, k = np.unravel_index(int(v.argmax()), v.shape)
+    times, freqs = img.times.value, img.frequencies.value
+    (OUT / "qimage_expected.json").write_text(json.dumps(dict(
+        q=float(img.q), shape=list(v.shape), t0=float(times[0]), dt=float(times[1] - times[0]),
+        f_lo=float(freqs[0]), f_hi=float(freqs[-1]),
+        max_time=float(times[i]), max_frequency=float(freqs[k]), max_value=float(v[i, k]),
+        # every 50th column by every 25th row, for a value-by-value check
+        coarse=[[float(x) for x in row[::25]] for row in v[::50]],
+    )) + "\n")
     for p in sorted(OUT.iterdir()):
         print(f"wrote {p.relative_to(OUT.parent.parent)} ({p.stat().st_size} bytes)")
 

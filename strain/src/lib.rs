@@ -11,6 +11,7 @@
 pub mod classifier;
 pub mod gwosc;
 pub mod psd;
+pub mod qimage;
 pub mod qtransform;
 pub mod scan;
 pub mod series;
