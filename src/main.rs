@@ -2,8 +2,10 @@
 
 mod commands;
 mod learn;
+mod qscan;
 mod repl;
 mod scan;
+mod strain_input;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use gwml::compiler::ir::{MathMode, Precision, UnknownSetting};
@@ -48,6 +50,9 @@ enum Command {
     Data(DataCommand),
     /// Scan strain files for glitches: PSD, whitening, Q-tile triggers, classification.
     Scan(scan::ScanArgs),
+    /// Q-transform images of whitened strain around a GPS time (PNG), at
+    /// Gravity Spy's four durations.
+    Qscan(qscan::QscanArgs),
     /// Run a reference experiment end to end and write its tables and plots.
     Experiment(ExperimentArgs),
     /// The learned glitch generator: fit one glitch family's distribution
@@ -462,6 +467,7 @@ fn main() -> ExitCode {
         Command::Data(DataCommand::Glitch(a)) => learn::data(a, true),
         Command::Data(DataCommand::Strain(a)) => scan::data_strain(a),
         Command::Scan(a) => scan::scan(a),
+        Command::Qscan(a) => qscan::qscan(a),
         Command::Generator(GeneratorCommand::Fit(a)) => generator::fit_command(a),
         Command::Generator(GeneratorCommand::Sample(a)) => generator::sample_command(a),
         Command::Experiment(a) => match a.which {

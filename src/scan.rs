@@ -2,13 +2,14 @@
 //! `gwml_lab::strain` (simulated strain) and `gwml_strain` (the scan).
 
 use crate::commands::render;
+use crate::strain_input::{Source, StrainInput, StrainRun as Run};
 use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate, write_truth, NoiseCurve, StrainOptions};
 use gwml_lab::synth::GlitchClass;
 use gwml_strain::classifier::{Classifier, Manifest};
 use gwml_strain::gwosc::{self, WriteOptions};
 use gwml_strain::scan::{merge_rows, Report, ScanOptions, Scanner};
-use gwml_strain::series::{plan, Series, SkipReason, Span};
+use gwml_strain::series::{plan, SkipReason, Span};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -118,10 +119,8 @@ pub fn data_strain(a: StrainArgs) -> Result<(), String> {
 
 #[derive(clap::Args)]
 pub struct ScanArgs {
-    /// Strain files: GWOSC HDF5 (.hdf5, .h5) of one detector, consecutive
-    /// segments in any order; or one .npy with --sample-rate and --gps-start.
-    #[arg(required = true, value_name = "STRAIN")]
-    pub strain: Vec<PathBuf>,
+    #[command(flatten)]
+    pub input: StrainInput,
     /// Classifier: a manifest (glitch-classifier.json) or a .gw file with
     /// --weights [default: the shipped classifier, models/glitch-classifier].
     #[arg(long, value_name = "M.gw|MANIFEST.json")]
@@ -161,124 +160,6 @@ pub struct ScanArgs {
     /// whatever the files' length).
     #[arg(long, value_name = "SECONDS", default_value_t = 1024.0)]
     pub block: f64,
-    /// .npy input: samples per second.
-    #[arg(long, value_name = "HZ")]
-    pub sample_rate: Option<f64>,
-    /// .npy input: GPS time of the first sample.
-    #[arg(long, value_name = "GPS")]
-    pub gps_start: Option<f64>,
-    /// .npy input: detector name.
-    #[arg(long, default_value = "X1")]
-    pub ifo: String,
-}
-
-/// A strain input: an HDF5 file read a window at a time, or a `.npy` held whole.
-enum Source {
-    File(gwosc::Reader),
-    Memory(Series),
-}
-
-impl Source {
-    fn span(&self) -> Span {
-        match self {
-            Source::File(r) => Span {
-                detector: r.detector.clone(),
-                gps_start: r.gps_start,
-                sample_rate: r.sample_rate,
-                samples: r.samples,
-                source: r.path().display().to_string(),
-            },
-            Source::Memory(s) => s.span(),
-        }
-    }
-
-    fn dq(&self) -> Option<&[u32]> {
-        match self {
-            Source::File(r) => r.dq_mask.as_deref(),
-            Source::Memory(s) => s.dq.as_deref(),
-        }
-    }
-
-    fn read(&self, start: usize, count: usize) -> Result<Vec<f64>, String> {
-        match self {
-            Source::File(r) => r.read_samples(start, count).map_err(|e| format!("error: {e}")),
-            Source::Memory(s) => Ok(s.samples[start.min(s.samples.len())..(start + count).min(s.samples.len())].to_vec()),
-        }
-    }
-}
-
-/// Opens one strain input (an HDF5 file's metadata, or a whole `.npy`).
-fn open_strain(path: &Path, a: &ScanArgs) -> Result<Source, String> {
-    let is_npy = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"));
-    if is_npy {
-        let (Some(rate), Some(gps)) = (a.sample_rate, a.gps_start) else {
-            return Err(format!("error: {}: a .npy file needs --sample-rate and --gps-start", path.display()));
-        };
-        let data = gwml::runtime::npy::read(path).map_err(render)?;
-        if data.complex {
-            return Err(format!("error: {}: strain must be real, the file holds complex numbers", path.display()));
-        }
-        return Ok(Source::Memory(Series {
-            detector: a.ifo.clone(),
-            gps_start: gps,
-            sample_rate: rate,
-            samples: data.values.iter().map(|c| c.re).collect(),
-            dq: None,
-            source: path.display().to_string(),
-        }));
-    }
-    if a.sample_rate.is_some() || a.gps_start.is_some() {
-        return Err(format!("error: {}: --sample-rate and --gps-start are for .npy files; an HDF5 file carries its own", path.display()));
-    }
-    gwosc::open(path).map(Source::File).map_err(|e| format!("error: {e}"))
-}
-
-/// Consecutive inputs read as one stretch, a block at a time.
-struct Run<'s> {
-    parts: Vec<&'s Source>,
-    span: Span,
-    /// The DQ words of the whole run (one per second), if every part has them.
-    dq: Option<Vec<u32>>,
-}
-
-impl<'s> Run<'s> {
-    fn new(sources: &'s [Source], indices: &[usize]) -> Run<'s> {
-        let parts: Vec<&Source> = indices.iter().map(|&i| &sources[i]).collect();
-        let first = parts[0].span();
-        let samples = parts.iter().map(|p| p.span().samples).sum();
-        let whole = parts.iter().all(|p| {
-            let s = p.span();
-            (s.samples as f64 / s.sample_rate).fract() == 0.0
-        });
-        let dq = parts.iter().map(|p| p.dq().map(<[u32]>::to_vec)).collect::<Option<Vec<_>>>().filter(|_| whole).map(|v| v.concat());
-        let source = parts.iter().map(|p| p.span().source).collect::<Vec<_>>().join(" + ");
-        Run { span: Span { samples, source, ..first }, parts, dq }
-    }
-
-    /// Samples `start..start + count` of the run as a series.
-    fn block(&self, start: usize, count: usize) -> Result<Series, String> {
-        let mut samples = Vec::with_capacity(count);
-        let mut offset = 0;
-        for part in &self.parts {
-            let n = part.span().samples;
-            let (a, b) = (start.max(offset), (start + count).min(offset + n));
-            if a < b {
-                samples.extend(part.read(a - offset, b - a)?);
-            }
-            offset += n;
-        }
-        let fs = self.span.sample_rate;
-        let (s0, s1) = ((start as f64 / fs) as usize, ((start + count) as f64 / fs).ceil() as usize);
-        let aligned = (start as f64 / fs).fract() == 0.0;
-        Ok(Series {
-            detector: self.span.detector.clone(),
-            gps_start: self.span.gps_start + start as f64 / fs,
-            sample_rate: fs,
-            samples,
-            dq: self.dq.as_ref().filter(|_| aligned).map(|d| d[s0.min(d.len())..s1.min(d.len())].to_vec()),
-            source: self.span.source.clone(),
-        })
-    }
 }
 
 /// The classifier the arguments ask for.
@@ -333,7 +214,7 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     // whitening scene for 4096 Hz data (GWOSC's usual rate) compile.
     let (opened, scanner) = std::thread::scope(|scope| {
         let opening = scope.spawn(|| -> Result<_, String> {
-            let sources = a.strain.iter().map(|p| open_strain(p, &a)).collect::<Result<Vec<_>, _>>()?;
+            let sources = a.input.open()?;
             let spans: Vec<Span> = sources.iter().map(Source::span).collect();
             let (runs, gaps) = plan(&spans).map_err(|e| format!("error: {e}"))?;
             let first = Run::new(&sources, &runs[0]).block(0, (a.block * spans[runs[0][0]].sample_rate) as usize)?;
@@ -341,7 +222,7 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
         });
         let scanner = classifier(&a).and_then(|c| Scanner::new(options, c).map_err(|e| format!("error: {e}")));
         if let Ok(s) = &scanner {
-            let _ = s.warm_up(a.sample_rate.unwrap_or(4096.0));
+            let _ = s.warm_up(a.input.sample_rate.unwrap_or(4096.0));
         }
         (opening.join().expect("the opening thread does not panic"), scanner)
     });

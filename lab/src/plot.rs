@@ -291,6 +291,84 @@ pub fn confusion_plot(path: &Path, title: &str, labels: &[&str], counts: &[Vec<u
     Ok(())
 }
 
+/// One panel of [`heatmaps_plot`]: `values[i * ys.len() + k]` at `xs[i]`, `ys[k]`.
+pub struct Heatmap<'a> {
+    /// The panel's title.
+    pub title: String,
+    /// Column positions (increasing, evenly spaced).
+    pub xs: &'a [f64],
+    /// Row positions (increasing; drawn on a log axis, so positive).
+    pub ys: &'a [f64],
+    /// The values.
+    pub values: &'a [f64],
+}
+
+/// Draws heatmaps side by side in a grid of `columns` (a Q-scan's panels),
+/// with a log y axis, coloured by viridis from 0 to `max` (values above
+/// are saturated), into a PNG at `path`.
+pub fn heatmaps_plot(
+    path: &Path,
+    title: &str,
+    (x_label, y_label): (&str, &str),
+    panels: &[Heatmap],
+    columns: usize,
+    max: f64,
+) -> Result<(), String> {
+    use plotters::style::colors::colormaps::{ColorMap, ViridisRGB};
+    register_font();
+    let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
+    let columns = columns.clamp(1, panels.len().max(1));
+    let rows = panels.len().div_ceil(columns);
+    for p in panels {
+        if p.xs.len() < 2 || p.ys.len() < 2 || p.values.len() != p.xs.len() * p.ys.len() || p.ys[0] <= 0.0 {
+            return Err(err(&format!("panel `{}` needs at least 2 × 2 values on a positive y axis", p.title)));
+        }
+    }
+    let root = BitMapBackend::new(path, (520 * columns as u32, 420 * rows as u32 + 40)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let root = root.titled(title, ("sans-serif", 24)).map_err(|e| err(&e))?;
+    for (area, p) in root.split_evenly((rows, columns)).iter().zip(panels) {
+        let (x0, x1) = (p.xs[0], 2.0 * p.xs[p.xs.len() - 1] - p.xs[p.xs.len() - 2]);
+        let (y0, y1) = (p.ys[0], p.ys[p.ys.len() - 1]);
+        let mut chart = ChartBuilder::on(area)
+            .caption(&p.title, ("sans-serif", 16))
+            .margin(10)
+            .x_label_area_size(36)
+            .y_label_area_size(52)
+            .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(|e| err(&e))?;
+        let ny = p.ys.len();
+        let dx = p.xs[1] - p.xs[0];
+        // Row edges halfway between rows (geometric mean on the log axis).
+        let edge = |k: usize| {
+            if k == 0 {
+                y0
+            } else if k == ny {
+                y1
+            } else {
+                (p.ys[k - 1] * p.ys[k]).sqrt()
+            }
+        };
+        let cells = p.xs.iter().enumerate().flat_map(|(i, x)| {
+            (0..ny).map(move |k| {
+                let v = (p.values[i * ny + k] / max).clamp(0.0, 1.0);
+                Rectangle::new([(*x, edge(k)), (x + dx, edge(k + 1))], ViridisRGB.get_color(v as f32).filled())
+            })
+        });
+        chart.draw_series(cells).map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -16,6 +16,7 @@ pub mod qtransform;
 pub mod scan;
 pub mod series;
 pub mod triggers;
+pub mod whitening;
 
 use std::fmt;
 

@@ -66,76 +66,105 @@ pub struct ImageOptions {
     pub frequencies: usize,
 }
 
-/// The Q-transform image of whitened data `x` sampled at `sample_rate`
-/// from GPS `gps_start`, tiled with `tiling`.
-pub fn q_image(x: &[f64], sample_rate: f64, gps_start: f64, tiling: &QOptions, o: &ImageOptions) -> Result<QImage, Error> {
-    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-        return Err(Error::Data(format!(
-            "the Q-transform's input has a non-finite sample at GPS {:.4}",
-            gps_start + i as f64 / sample_rate
-        )));
+/// The Q-transform of whitened data: every tile's median-normalised energy.
+pub struct QTransform {
+    tiling: QTiling,
+    /// `energies[plane][row][tile]`.
+    energies: Vec<Vec<Vec<f64>>>,
+    gps_start: f64,
+}
+
+impl QTransform {
+    /// Transforms whitened data `x` sampled at `sample_rate` from GPS
+    /// `gps_start`, tiled as `options` says.
+    pub fn new(x: &[f64], sample_rate: f64, gps_start: f64, options: &QOptions) -> Result<QTransform, Error> {
+        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Data(format!(
+                "the Q-transform's input has a non-finite sample at GPS {:.4}",
+                gps_start + i as f64 / sample_rate
+            )));
+        }
+        let tiling = QTiling::new(x.len() as f64 / sample_rate, sample_rate, options)?;
+        let mut input = x.to_vec();
+        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(x.len());
+        let mut spectrum = fft.make_output_vec();
+        fft.process(&mut input, &mut spectrum).map_err(|e| Error::Data(format!("FFT failed: {e}")))?;
+        let energies = tiling.planes.iter().map(|p| p.rows.iter().map(|r| r.energies(&spectrum)).collect()).collect();
+        Ok(QTransform { tiling, energies, gps_start })
     }
-    let duration = x.len() as f64 / sample_rate;
-    let end = gps_start + duration;
-    let (t_lo, t_hi) = o.outseg;
-    if !(t_lo >= gps_start && t_hi <= end && t_hi > t_lo) {
-        return Err(Error::Data(format!("the image's interval {t_lo}..{t_hi} is not inside the data's {gps_start}..{end}")));
+
+    /// The tiling.
+    pub fn tiling(&self) -> &QTiling {
+        &self.tiling
     }
-    if o.times < 2 || o.frequencies < 2 {
-        return Err(Error::Data("a Q image needs at least 2 columns and 2 rows".into()));
-    }
-    let search = o.search.map(|(a, b)| (a.max(gps_start), b.min(end)));
-    let tiling = QTiling::new(duration, sample_rate, tiling)?;
-    let mut input = x.to_vec();
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(x.len());
-    let mut spectrum = fft.make_output_vec();
-    fft.process(&mut input, &mut spectrum).map_err(|e| Error::Data(format!("FFT failed: {e}")))?;
-    // The plane with the loudest tile in the search window (gwpy's QGram peak).
-    let mut best: Option<(usize, QPeak, Vec<Vec<f64>>)> = None;
-    for (p, plane) in tiling.planes.iter().enumerate() {
-        let rows: Vec<Vec<f64>> = plane.rows.iter().map(|r| r.energies(&spectrum)).collect();
+
+    /// The loudest tile of plane `p` between GPS `search.0` and `search.1`.
+    fn peak(&self, p: usize, search: Option<(f64, f64)>) -> QPeak {
         let mut peak = QPeak { time: 0.0, frequency: 0.0, energy: 0.0 };
-        for (row, energies) in plane.rows.iter().zip(&rows) {
-            let dt = duration / row.tiles as f64;
+        for (row, energies) in self.tiling.planes[p].rows.iter().zip(&self.energies[p]) {
+            let dt = self.tiling.duration / row.tiles as f64;
             for (j, e) in energies.iter().enumerate() {
-                let t = gps_start + j as f64 * dt;
-                let inside = search.is_none_or(|(a, b)| t >= a && t < b);
-                if inside && *e > peak.energy {
+                let t = self.gps_start + j as f64 * dt;
+                if search.is_none_or(|(a, b)| t >= a && t < b) && *e > peak.energy {
                     peak = QPeak { time: t, frequency: row.frequency, energy: *e };
                 }
             }
         }
-        if best.as_ref().is_none_or(|b| peak.energy > b.1.energy) {
-            best = Some((p, peak, rows));
-        }
+        peak
     }
-    let (p, peak, rows) = best.ok_or_else(|| Error::Data("the Q tiling has no planes".into()))?;
-    let plane = &tiling.planes[p];
-    let tres = (t_hi - t_lo) / o.times as f64;
-    let times: Vec<f64> = (0..o.times).map(|i| t_lo + i as f64 * tres).collect();
-    // Each row onto the common time axis.
-    let columns: Vec<Vec<f64>> = plane
-        .rows
-        .iter()
-        .zip(&rows)
-        .map(|(row, energies)| {
-            let dt = duration / row.tiles as f64;
-            times.iter().map(|t| cubic_uniform(energies, (t - gps_start) / dt)).collect()
-        })
-        .collect();
-    // Then across rows onto log-spaced frequencies.
-    let (f_lo, f_hi) = tiling.f_range;
-    let frequencies: Vec<f64> = (0..o.frequencies).map(|k| f_lo * (f_hi / f_lo).powf(k as f64 / (o.frequencies - 1) as f64)).collect();
-    let row_freqs: Vec<f64> = plane.rows.iter().map(|r| r.frequency).collect();
-    let mut values = Vec::with_capacity(o.times * o.frequencies);
-    let mut across = vec![0.0; row_freqs.len()];
-    for i in 0..o.times {
-        for (a, c) in across.iter_mut().zip(&columns) {
-            *a = c[i];
+
+    /// The image of the plane with the loudest tile in `o.search`.
+    pub fn image(&self, o: &ImageOptions) -> Result<QImage, Error> {
+        let (gps_start, duration) = (self.gps_start, self.tiling.duration);
+        let end = gps_start + duration;
+        let (t_lo, t_hi) = o.outseg;
+        if !(t_lo >= gps_start && t_hi <= end && t_hi > t_lo) {
+            return Err(Error::Data(format!("the image's interval {t_lo}..{t_hi} is not inside the data's {gps_start}..{end}")));
         }
-        values.extend(frequencies.iter().map(|f| cubic_nonuniform(&row_freqs, &across, *f)));
+        if o.times < 2 || o.frequencies < 2 {
+            return Err(Error::Data("a Q image needs at least 2 columns and 2 rows".into()));
+        }
+        let search = o.search.map(|(a, b)| (a.max(gps_start), b.min(end)));
+        let (p, peak) = (0..self.tiling.planes.len())
+            .map(|p| (p, self.peak(p, search)))
+            .fold(None, |best: Option<(usize, QPeak)>, (p, peak)| match best {
+                Some(b) if b.1.energy >= peak.energy => Some(b),
+                _ => Some((p, peak)),
+            })
+            .ok_or_else(|| Error::Data("the Q tiling has no planes".into()))?;
+        let plane = &self.tiling.planes[p];
+        let tres = (t_hi - t_lo) / o.times as f64;
+        let times: Vec<f64> = (0..o.times).map(|i| t_lo + i as f64 * tres).collect();
+        // Each row onto the common time axis.
+        let columns: Vec<Vec<f64>> = plane
+            .rows
+            .iter()
+            .zip(&self.energies[p])
+            .map(|(row, energies)| {
+                let dt = duration / row.tiles as f64;
+                times.iter().map(|t| cubic_uniform(energies, (t - gps_start) / dt)).collect()
+            })
+            .collect();
+        // Then across rows onto log-spaced frequencies.
+        let (f_lo, f_hi) = self.tiling.f_range;
+        let frequencies: Vec<f64> = (0..o.frequencies).map(|k| f_lo * (f_hi / f_lo).powf(k as f64 / (o.frequencies - 1) as f64)).collect();
+        let row_freqs: Vec<f64> = plane.rows.iter().map(|r| r.frequency).collect();
+        let mut values = Vec::with_capacity(o.times * o.frequencies);
+        let mut across = vec![0.0; row_freqs.len()];
+        for i in 0..o.times {
+            for (a, c) in across.iter_mut().zip(&columns) {
+                *a = c[i];
+            }
+            values.extend(frequencies.iter().map(|f| cubic_nonuniform(&row_freqs, &across, *f)));
+        }
+        Ok(QImage { q: plane.q, times, frequencies, values, peak })
     }
-    Ok(QImage { q: plane.q, times, frequencies, values, peak })
+}
+
+/// The Q-transform image of whitened data `x` sampled at `sample_rate`
+/// from GPS `gps_start`, tiled as `tiling` says ([`QTransform::image`]).
+pub fn q_image(x: &[f64], sample_rate: f64, gps_start: f64, tiling: &QOptions, o: &ImageOptions) -> Result<QImage, Error> {
+    QTransform::new(x, sample_rate, gps_start, tiling)?.image(o)
 }
 
 /// Cubic Hermite interpolation of `y` (samples at 0, 1, 2, …) at `x`, with

@@ -20,16 +20,13 @@ use crate::psd::{Welch, WelchOptions};
 use crate::qtransform::{tile_snr, ExcessPower, QOptions, QTiling, RowBuffers};
 use crate::series::{good_segments, Segment, Series, SkipReason, Skipped};
 use crate::triggers::{absorbed_into, cluster, Threshold, Tile, Trigger};
+use crate::whitening::{whiten_with, WhitenOptions, Whitener};
 use crate::Error;
-use gwml_compiler::Options;
-use gwml_runtime::{Model, Scene, Value};
+use gwml_runtime::Scene;
 use rayon::prelude::*;
 use realfft::RealFftPlanner;
 use std::collections::BTreeMap;
 use std::f64::consts::{LN_2, PI};
-
-/// The whitening scene.
-const WHITEN_SOURCE: &str = include_str!("../models/whiten.gw");
 
 /// Durations (s) over which tile energies are summed as excess power.
 const EXCESS_POWER_WINDOWS: [f64; 4] = [0.125, 0.25, 0.5, 1.0];
@@ -163,7 +160,7 @@ struct Chunk {
 pub struct Scanner {
     options: ScanOptions,
     classifier: Option<Classifier>,
-    whiten: Model,
+    whitener: Whitener,
     /// Compiled scenes and tilings by (sample rate in mHz, chunk samples).
     prepared: std::sync::Mutex<BTreeMap<(u64, usize), std::sync::Arc<Prepared>>>,
 }
@@ -190,8 +187,7 @@ impl Scanner {
         if o.chunk.fract() != 0.0 || o.pad.fract() != 0.0 {
             return Err(Error::Data("chunk and pad lengths must be whole seconds".into()));
         }
-        let whiten = Model::from_source("whiten.gw", WHITEN_SOURCE).map_err(|e| Error::Data(e.render(false)))?;
-        Ok(Scanner { options, classifier, whiten, prepared: Default::default() })
+        Ok(Scanner { options, classifier, whitener: Whitener::new()?, prepared: Default::default() })
     }
 
     /// The classifier, if any.
@@ -332,18 +328,8 @@ impl Scanner {
     fn prepare(&self, n: usize, fs: f64) -> Result<Prepared, Error> {
         let o = &self.options;
         let duration = n as f64 / fs;
-        let band = self.classifier.as_ref().map_or((20.0, 2000.0), |c| c.manifest.band_hz);
-        let knobs = [
-            ("rate", format!("{fs:?} Hz")),
-            ("duration", format!("{duration:?} s")),
-            ("taper", format!("{:?} s", o.pad / 2.0)),
-            ("f_low", format!("{:?} Hz", o.f_range.0)),
-            ("f_high", format!("{:?} Hz", o.f_range.1)),
-            ("clf_low", format!("{:?} Hz", band.0)),
-            ("clf_high", format!("{:?} Hz", band.1)),
-        ];
-        let options = Options { knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(), ..Options::default() };
-        let whiten = self.whiten.scene_with(None, options).map_err(|e| Error::Data(e.render(false)))?;
+        let classifier_band = self.classifier.as_ref().map_or((20.0, 2000.0), |c| c.manifest.band_hz);
+        let whiten = self.whitener.scene(n, fs, &WhitenOptions { taper: o.pad / 2.0, band: o.f_range, classifier_band })?;
         let q = QOptions { q_range: o.q_range, f_range: o.f_range, mismatch: o.mismatch, smooth_sizes: true, plane_nyquist: true };
         let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
         Ok(Prepared { whiten, tiling: QTiling::new(duration, fs, &q)?, fft })
@@ -371,26 +357,10 @@ impl Scanner {
             (a, b) = (chunk.start, chunk.start + n);
         }
         let psd = welch.estimate(&series.samples[a..b])?;
-        let duration = n as f64 / fs;
-        let psd_grid = psd.resample(1.0 / duration, n / 2 + 1);
         clock.add(0, since);
         since = std::time::Instant::now();
-        let fail = |e: gwml_runtime::Error| Error::Data(format!("whitening failed: {}", e.render(false)));
-        run.input_real("x", x).map_err(fail)?;
-        run.input_real("psd", &psd_grid).map_err(fail)?;
-        let out = run.forward().map_err(fail)?;
-        let real = |name: &str| match out.value(name) {
-            Ok(Value::RealArray(v)) => Ok(v.clone()),
-            _ => Err(Error::Data(format!("the whitening scene has no real array `{name}`"))),
-        };
-        let (w, w_clf) = (real("w")?, real("w_clf")?);
-        if let Some(i) = w.iter().position(|v| !v.is_finite()) {
-            return Err(Error::Data(format!(
-                "whitening made a non-finite value at GPS {:.4} ({})",
-                series.gps_start + (chunk.start + i) as f64 / fs,
-                series.source
-            )));
-        }
+        let (w, w_clf) = whiten_with(run, x, &psd, (fs, series.gps_start + chunk.start as f64 / fs, &series.source))?;
+        let duration = n as f64 / fs;
         clock.add(1, since);
         since = std::time::Instant::now();
         let mut input = w.clone();

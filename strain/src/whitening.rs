@@ -1,0 +1,114 @@
+//! Whitening of strain by a PSD estimated from the data, with the gwml
+//! scene `strain/models/whiten.gw`: the one owner of that scene, used by
+//! the scan's chunks and by the views around one time (`gwml qscan`,
+//! `gwml explain`).
+
+use crate::psd::{Psd, Welch, WelchOptions};
+use crate::series::Series;
+use crate::Error;
+use gwml_compiler::Options;
+use gwml_runtime::{Model, Scene, Value};
+
+/// The whitening scene.
+const WHITEN_SOURCE: &str = include_str!("../models/whiten.gw");
+
+/// The whitening scene, parsed and checked once; compiled per length.
+pub struct Whitener {
+    model: Model,
+}
+
+/// How a stretch is whitened.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WhitenOptions {
+    /// Seconds tapered to zero at each end (a Tukey window).
+    pub taper: f64,
+    /// Band of the output `w` (Hz).
+    pub band: (f64, f64),
+    /// Band of the second output `w_clf` (Hz), the classifier's.
+    pub classifier_band: (f64, f64),
+}
+
+impl Whitener {
+    /// Parses and checks `whiten.gw`.
+    pub fn new() -> Result<Whitener, Error> {
+        let model = Model::from_source("whiten.gw", WHITEN_SOURCE).map_err(|e| Error::Data(e.render(false)))?;
+        Ok(Whitener { model })
+    }
+
+    /// The scene compiled for `n` samples at `sample_rate`: inputs `x` (the
+    /// strain) and `psd` (on the `n / 2 + 1` bins of the chunk's spectrum),
+    /// outputs `w` and `w_clf`.
+    pub fn scene(&self, n: usize, sample_rate: f64, o: &WhitenOptions) -> Result<Scene, Error> {
+        let duration = n as f64 / sample_rate;
+        let knobs = [
+            ("rate", format!("{sample_rate:?} Hz")),
+            ("duration", format!("{duration:?} s")),
+            ("taper", format!("{:?} s", o.taper)),
+            ("f_low", format!("{:?} Hz", o.band.0)),
+            ("f_high", format!("{:?} Hz", o.band.1)),
+            ("clf_low", format!("{:?} Hz", o.classifier_band.0)),
+            ("clf_high", format!("{:?} Hz", o.classifier_band.1)),
+        ];
+        let options = Options { knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(), ..Options::default() };
+        self.model.scene_with(None, options).map_err(|e| Error::Data(e.render(false)))
+    }
+}
+
+/// Whitens `x` (sampled at `fs`, starting at GPS `gps_start`, from
+/// `source`) by `psd` with a compiled [`Whitener::scene`] bound as `run`:
+/// `(w, w_clf)`. A non-finite result is an error naming its GPS time.
+pub fn whiten_with(
+    run: &mut gwml_runtime::Run,
+    x: &[f64],
+    psd: &Psd,
+    (fs, gps_start, source): (f64, f64, &str),
+) -> Result<(Vec<f64>, Vec<f64>), Error> {
+    let n = x.len();
+    let psd_grid = psd.resample(fs / n as f64, n / 2 + 1);
+    let fail = |e: gwml_runtime::Error| Error::Data(format!("whitening failed: {}", e.render(false)));
+    run.input_real("x", x).map_err(fail)?;
+    run.input_real("psd", &psd_grid).map_err(fail)?;
+    let out = run.forward().map_err(fail)?;
+    let real = |name: &str| match out.value(name) {
+        Ok(Value::RealArray(v)) => Ok(v.clone()),
+        _ => Err(Error::Data(format!("the whitening scene has no real array `{name}`"))),
+    };
+    let (w, w_clf) = (real("w")?, real("w_clf")?);
+    if let Some(i) = w.iter().chain(&w_clf).position(|v| !v.is_finite()) {
+        return Err(Error::Data(format!("whitening made a non-finite value at GPS {:.4} ({source})", gps_start + (i % n) as f64 / fs)));
+    }
+    Ok((w, w_clf))
+}
+
+/// A whitened stretch of strain.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Whitened {
+    /// GPS time of the first sample.
+    pub gps_start: f64,
+    /// Samples per second.
+    pub sample_rate: f64,
+    /// Whitened over [`WhitenOptions::band`] (unit variance per sample in noise).
+    pub w: Vec<f64>,
+    /// Whitened over [`WhitenOptions::classifier_band`].
+    pub w_clf: Vec<f64>,
+}
+
+/// Whitens the whole of `series` (which must hold no missing samples) by
+/// its own Welch PSD (`fft_length` s segments).
+pub fn whiten_series(whitener: &Whitener, series: &Series, fft_length: f64, o: &WhitenOptions) -> Result<Whitened, Error> {
+    let fs = series.sample_rate;
+    if let Some(i) = series.samples.iter().position(|v| !v.is_finite()) {
+        return Err(Error::Data(format!(
+            "{}: no data at GPS {:.3} (a missing stretch) within the {} s needed",
+            series.source,
+            series.gps_start + i as f64 / fs,
+            series.duration()
+        )));
+    }
+    let welch = Welch::new(fs, WelchOptions::seconds(fft_length, fs))?;
+    let scene = whitener.scene(series.samples.len(), fs, o)?;
+    let mut run = scene.bind();
+    let psd = welch.estimate(&series.samples)?;
+    let (w, w_clf) = whiten_with(&mut run, &series.samples, &psd, (fs, series.gps_start, &series.source))?;
+    Ok(Whitened { gps_start: series.gps_start, sample_rate: fs, w, w_clf })
+}
