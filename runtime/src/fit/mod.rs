@@ -22,15 +22,20 @@
 //!   Fisher information and its inverse the covariance of the estimate in
 //!   the linear-signal approximation (Vallisneri 2008, PRD 77, 042001).
 //!   The loss must be normalised that way for the σ to mean anything.
+//! - [`laplace_evidence`] turns a fit into a log evidence under uniform
+//!   priors on the bounds (model comparison), [`bic`] the Bayesian
+//!   information criterion.
 //! - [`fit_run`] ties them to a [`Run`]: the free params are those the
 //!   scene names in `grad OUTPUT wrt [...]`, started from their current
 //!   values (defaults or what was set).
 
+mod evidence;
 mod fisher;
 mod minimize;
 mod scene;
 mod transform;
 
+pub use evidence::*;
 pub use fisher::*;
 pub use minimize::*;
 pub use scene::*;
