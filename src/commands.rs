@@ -245,7 +245,7 @@ fn summary(len: usize, xs: impl Iterator<Item = f64> + Clone, complex: bool) -> 
 }
 
 /// Binds `--set` and `--input` values to a run (as `gwml run` does).
-fn bind_args(run: &mut gwml::Run, bind: &BindArgs) -> Result<(), String> {
+pub(crate) fn bind_args(run: &mut gwml::Run, bind: &BindArgs) -> Result<(), String> {
     for s in &bind.set {
         let (name, value) = split_pair(s, "--set")?;
         let v: f64 = value.parse().map_err(|_| format!("error: --set {name}: `{value}` is not a number"))?;

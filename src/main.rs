@@ -1,6 +1,7 @@
 //! The `gwml` command-line tool.
 
 mod commands;
+mod compare;
 mod learn;
 mod qscan;
 mod repl;
@@ -39,6 +40,9 @@ enum Command {
     /// Minimise a scene's scalar loss over the params of its `grad` statement
     /// (within their bounds) and report Fisher-matrix uncertainties.
     Fit(FitArgs),
+    /// Fit several scenes to the same data and rank them by Laplace log
+    /// evidence and BIC: which model explains the data.
+    Compare(compare::CompareArgs),
     /// Train the learned components of a scene on a NumPy dataset (weights
     /// and the params its `grad` names), with validation, early stopping and
     /// safetensors checkpoints.
@@ -460,6 +464,7 @@ fn main() -> ExitCode {
         Command::Compile(a) => commands::compile(a),
         Command::Run(a) => commands::run(a),
         Command::Fit(a) => commands::fit(a),
+        Command::Compare(a) => compare::compare(a),
         Command::Tradeoff(a) => commands::tradeoff(a),
         Command::Train(a) => learn::train(a),
         Command::Predict(a) => learn::predict(a),

@@ -74,3 +74,28 @@ fn laplace_evidence_matches_numerical_integration() {
         );
     }
 }
+
+/// `gwml compare` on a noise-free 3.5PN injection prefers a 3–3.5PN phase
+/// model to 1PN and 2PN ones by a decisive log Bayes factor.
+#[test]
+fn compare_prefers_the_injected_pn_order() {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/pn_orders.gw");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_gwml"))
+        .args(["compare", file, "--scenes", "pn1,pn2,pn3,pn35", "--format", "json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let ranking = doc["ranking"].as_array().unwrap();
+    let best = ranking[0]["scene"].as_str().unwrap();
+    assert!(best == "pn35" || best == "pn3", "best {best}");
+    let best_ln_z = ranking[0]["ln_evidence"].as_f64().unwrap();
+    for low in ["pn1", "pn2"] {
+        let row = ranking.iter().find(|r| r["scene"] == low).unwrap();
+        // No evidence (a fit pinned to its bounds) ranks last.
+        if let Some(z) = row["ln_evidence"].as_f64() {
+            assert!(best_ln_z - z > 3.0, "{low}: ln B {}", best_ln_z - z);
+        }
+        assert!(row["loss"].as_f64().unwrap() > 1.0, "{low} fits the 3.5PN data too well");
+    }
+}

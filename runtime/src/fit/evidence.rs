@@ -93,6 +93,32 @@ pub fn bic(loss: f64, k: usize, n: usize) -> f64 {
     2.0 * loss + k as f64 * (n as f64).ln()
 }
 
+/// How well one fitted model explains the data: what `gwml compare` and
+/// `gwml explain` rank by.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Score {
+    /// The loss at the best fit.
+    pub loss: f64,
+    /// Free params.
+    pub params: usize,
+    /// The Laplace evidence (or why there is none).
+    pub evidence: Result<Evidence, EvidenceError>,
+    /// [`bic`] with `n` data points.
+    pub bic: f64,
+}
+
+/// Scores a [`super::SceneFit`] of data with `n` points.
+pub fn score_fit(fit: &super::SceneFit, n: usize) -> Score {
+    let bounds: Vec<Option<(f64, f64)>> = fit.free.iter().map(|p| p.bounds).collect();
+    let k = fit.free.len();
+    Score {
+        loss: fit.minimum.loss,
+        params: k,
+        evidence: laplace_evidence(fit.minimum.loss, &fit.minimum.x, &fit.fisher, &bounds),
+        bic: bic(fit.minimum.loss, k, n),
+    }
+}
+
 /// The standard normal CDF, `½ erfc(−z/√2)`.
 fn normal_cdf(z: f64) -> f64 {
     0.5 * statrs::function::erf::erfc(-z / std::f64::consts::SQRT_2)
