@@ -1,6 +1,7 @@
-//! `gwml data strain` and `gwml scan` from the command line: bad inputs are
-//! one-line errors with exit status 1 (never a panic), missing data is a
-//! reported skip, and the outputs hold no NaN.
+//! `gwml data strain`, `gwml scan` and `gwml qscan` from the command line:
+//! bad inputs are one-line errors with exit status 1 (never a panic),
+//! missing data is a reported skip, the outputs hold no NaN, and a Q-scan's
+//! loudest tile sits on an injected glitch.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -120,4 +121,66 @@ fn scanning_in_small_blocks_finds_what_one_block_finds() {
     let matched = whole.iter().filter(|t| blocks.iter().any(|b| (b - *t).abs() < 0.05)).count();
     assert!(matched as f64 >= 0.9 * whole.len() as f64, "{whole:?} vs {blocks:?}");
     assert!((blocks.len() as f64 - whole.len() as f64).abs() <= 0.15 * whole.len() as f64, "{whole:?} vs {blocks:?}");
+}
+
+/// `gwml qscan`: the loudest tile of every duration's image is on the
+/// glitch, the PNG is written, and bad times are one-line errors.
+#[test]
+fn the_loudest_tile_is_on_the_glitch_and_bad_times_are_errors() {
+    let (file, truth) = (temp("s.hdf5"), temp("truth.csv"));
+    let (file, truth) = (file.display().to_string(), truth.display().to_string());
+    let out = gwml(&[
+        "data",
+        "strain",
+        "--duration",
+        "128",
+        "--out",
+        &file,
+        "--truth",
+        &truth,
+        "--glitch-rate",
+        "4",
+        "--snr",
+        "15..30",
+        "--gap",
+        "100:4",
+        "--seed",
+        "5",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // The loudest injection at least 20 s from the ends and the gap.
+    let text = std::fs::read_to_string(&truth).unwrap();
+    let (gps, snr) = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (f[0].parse::<f64>().unwrap(), f[2].parse::<f64>().unwrap())
+        })
+        .filter(|(t, _)| {
+            let s = t - 1_264_000_000.0;
+            (20.0..80.0).contains(&s)
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("an injection between 20 and 80 s");
+    let png = temp("q.png").display().to_string();
+    let out = gwml(&["qscan", &file, "--gps", &gps.to_string(), "--out", &png]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let lines: Vec<&str> = stdout.lines().filter(|l| l.contains("loudest tile")).collect();
+    assert_eq!(lines.len(), 4, "one line per default duration: {stdout}");
+    for l in lines {
+        // "... loudest tile +0.002 s at 123.9 Hz, normalised energy 180.6 ..."
+        let after = l.split("loudest tile ").nth(1).unwrap();
+        let offset: f64 = after.split(' ').next().unwrap().parse().unwrap();
+        let energy: f64 = l.split("normalised energy ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+        assert!(offset.abs() < 0.05, "loudest tile {offset} s from the injection (SNR {snr}): {l}");
+        assert!(energy > 25.0, "an SNR {snr} glitch gives normalised energy {energy}: {l}");
+    }
+    assert_eq!(&std::fs::read(&png).unwrap()[..4], b"\x89PNG");
+    // Bad times.
+    fails_with(&gwml(&["qscan", &file, "--gps", "1263999000", "--out", &png]), "is not in the data");
+    fails_with(&gwml(&["qscan", &file, "--gps", "1264000101", "--out", &png]), "missing data");
+    fails_with(&gwml(&["qscan", &file, "--gps", "1264000000.5", "--out", &png]), "too near an end");
+    fails_with(&gwml(&["qscan", &file, "--gps", &gps.to_string(), "--durations", "40", "--out", &png]), "duration too long");
 }
