@@ -2,6 +2,7 @@
 
 mod commands;
 mod compare;
+mod explain;
 mod learn;
 mod qscan;
 mod repl;
@@ -57,6 +58,10 @@ enum Command {
     /// Q-transform images of whitened strain around a GPS time (PNG), at
     /// Gravity Spy's four durations.
     Qscan(qscan::QscanArgs),
+    /// Explain a glitch: fit every glitch family and a chirp to the whitened
+    /// strain around a GPS time, rank them by Bayes factor (and against
+    /// noise), and name a likely cause.
+    Explain(explain::ExplainArgs),
     /// Run a reference experiment end to end and write its tables and plots.
     Experiment(ExperimentArgs),
     /// The learned glitch generator: fit one glitch family's distribution
@@ -398,9 +403,16 @@ pub struct ExperimentArgs {
     /// Small training sets and test sets: minutes instead of hours.
     #[arg(long)]
     pub quick: bool,
-    /// Directory for the tables (Markdown, CSV) and plots (PNG).
-    #[arg(long, value_name = "DIR", default_value = "results/glitch")]
-    pub out: PathBuf,
+    /// Directory for the tables (Markdown, CSV) and plots (PNG) [default:
+    /// results/glitch, results/explain].
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// `explain`: injections per glitch class.
+    #[arg(long, default_value_t = 100)]
+    pub per_class: usize,
+    /// `explain`: seed of the simulated strain.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Worker threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -413,6 +425,10 @@ pub enum ExperimentKind {
     /// differentiable template bank with a network head, on the same data
     /// (issue #7's reference experiment).
     Glitch,
+    /// `gwml explain` on injections of every glitch family and a chirp into
+    /// simulated strain: how often the right family wins, pulls of the
+    /// recovered params, time per trigger (issue #24's campaign).
+    Explain,
 }
 
 #[derive(clap::Args)]
@@ -473,14 +489,16 @@ fn main() -> ExitCode {
         Command::Data(DataCommand::Strain(a)) => scan::data_strain(a),
         Command::Scan(a) => scan::scan(a),
         Command::Qscan(a) => qscan::qscan(a),
+        Command::Explain(a) => explain::explain(a),
         Command::Generator(GeneratorCommand::Fit(a)) => generator::fit_command(a),
         Command::Generator(GeneratorCommand::Sample(a)) => generator::sample_command(a),
         Command::Experiment(a) => match a.which {
             ExperimentKind::Glitch => experiment::glitch(&experiment::GlitchExperiment {
                 quick: a.quick,
-                out: a.out,
+                out: a.out.unwrap_or_else(|| "results/glitch".into()),
                 threads: a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
             }),
+            ExperimentKind::Explain => explain::campaign(&a.out.unwrap_or_else(|| "results/explain".into()), a.per_class, a.seed),
         },
         Command::Repl => {
             let failures = repl::run();

@@ -17,6 +17,7 @@
 use std::io::IsTerminal;
 
 pub mod experiment;
+pub mod explain;
 pub mod generator;
 pub mod plot;
 pub mod strain;

@@ -306,66 +306,139 @@ pub struct Heatmap<'a> {
 /// Draws heatmaps side by side in a grid of `columns` (a Q-scan's panels),
 /// with a log y axis, coloured by viridis from 0 to `max` (values above
 /// are saturated), into a PNG at `path`.
-pub fn heatmaps_plot(
-    path: &Path,
-    title: &str,
-    (x_label, y_label): (&str, &str),
-    panels: &[Heatmap],
-    columns: usize,
-    max: f64,
-) -> Result<(), String> {
-    use plotters::style::colors::colormaps::{ColorMap, ViridisRGB};
+pub fn heatmaps_plot(path: &Path, title: &str, labels: (&str, &str), panels: &[Heatmap], columns: usize, max: f64) -> Result<(), String> {
     register_font();
     let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
+    check_heatmaps(path, panels)?;
     let columns = columns.clamp(1, panels.len().max(1));
     let rows = panels.len().div_ceil(columns);
-    for p in panels {
-        if p.xs.len() < 2 || p.ys.len() < 2 || p.values.len() != p.xs.len() * p.ys.len() || p.ys[0] <= 0.0 {
-            return Err(err(&format!("panel `{}` needs at least 2 × 2 values on a positive y axis", p.title)));
-        }
-    }
     let root = BitMapBackend::new(path, (520 * columns as u32, 420 * rows as u32 + 40)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root.titled(title, ("sans-serif", 24)).map_err(|e| err(&e))?;
     for (area, p) in root.split_evenly((rows, columns)).iter().zip(panels) {
-        let (x0, x1) = (p.xs[0], 2.0 * p.xs[p.xs.len() - 1] - p.xs[p.xs.len() - 2]);
-        let (y0, y1) = (p.ys[0], p.ys[p.ys.len() - 1]);
-        let mut chart = ChartBuilder::on(area)
-            .caption(&p.title, ("sans-serif", 16))
-            .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(52)
-            .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc(x_label)
-            .y_desc(y_label)
-            .label_style(("sans-serif", 13))
-            .draw()
-            .map_err(|e| err(&e))?;
-        let ny = p.ys.len();
-        let dx = p.xs[1] - p.xs[0];
-        // Row edges halfway between rows (geometric mean on the log axis).
-        let edge = |k: usize| {
-            if k == 0 {
-                y0
-            } else if k == ny {
-                y1
-            } else {
-                (p.ys[k - 1] * p.ys[k]).sqrt()
-            }
-        };
-        let cells = p.xs.iter().enumerate().flat_map(|(i, x)| {
-            (0..ny).map(move |k| {
-                let v = (p.values[i * ny + k] / max).clamp(0.0, 1.0);
-                Rectangle::new([(*x, edge(k)), (x + dx, edge(k + 1))], ViridisRGB.get_color(v as f32).filled())
-            })
-        });
-        chart.draw_series(cells).map_err(|e| err(&e))?;
+        draw_heatmap(area, p, labels, max).map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+/// A named line: `(legend, xs, ys)`.
+pub type Line<'a> = (&'a str, &'a [f64], &'a [f64]);
+
+/// Draws `(legend, xs, ys)` lines across the top (a whitened time series
+/// and a fit over it) and heatmaps side by side below (the Q-scans of the
+/// data and the residual), into a PNG at `path`.
+pub fn lines_over_heatmaps_plot(
+    path: &Path,
+    title: &str,
+    (lines, line_labels): (&[Line], (&str, &str)),
+    (panels, heatmap_labels): (&[Heatmap], (&str, &str)),
+    max: f64,
+) -> Result<(), String> {
+    register_font();
+    let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
+    check_heatmaps(path, panels)?;
+    let points: Vec<(f64, f64)> = lines
+        .iter()
+        .flat_map(|(_, xs, ys)| xs.iter().copied().zip(ys.iter().copied()))
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect();
+    if points.is_empty() {
+        return Err(err(&"no finite line values"));
+    }
+    let (x0, x1) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
+    let y = points.iter().fold(0.0f64, |m, (_, y)| m.max(y.abs())).max(1e-12) * 1.05;
+    let columns = panels.len().max(1);
+    let root = BitMapBackend::new(path, (520 * columns as u32, 760)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let root = root.titled(title, ("sans-serif", 24)).map_err(|e| err(&e))?;
+    let (top, bottom) = root.split_vertically(320);
+    let mut chart = ChartBuilder::on(&top)
+        .margin(10)
+        .x_label_area_size(36)
+        .y_label_area_size(52)
+        .build_cartesian_2d(x0..x1.max(x0 + 1e-9), -y..y)
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(line_labels.0)
+        .y_desc(line_labels.1)
+        .label_style(("sans-serif", 13))
+        .draw()
+        .map_err(|e| err(&e))?;
+    let colours = [RGBColor(150, 150, 150), RED, BLUE];
+    for (k, (name, xs, ys)) in lines.iter().enumerate() {
+        let colour = colours[k % colours.len()];
+        let line = xs.iter().copied().zip(ys.iter().copied()).filter(|(x, y)| x.is_finite() && y.is_finite());
+        let stroke = if k == 0 { colour.stroke_width(1) } else { colour.stroke_width(2) };
+        chart
+            .draw_series(LineSeries::new(line, stroke))
+            .map_err(|e| err(&e))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 13))
+        .draw()
+        .map_err(|e| err(&e))?;
+    for (area, p) in bottom.split_evenly((1, columns)).iter().zip(panels) {
+        draw_heatmap(area, p, heatmap_labels, max).map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+fn check_heatmaps(path: &Path, panels: &[Heatmap]) -> Result<(), String> {
+    for p in panels {
+        if p.xs.len() < 2 || p.ys.len() < 2 || p.values.len() != p.xs.len() * p.ys.len() || p.ys[0] <= 0.0 {
+            return Err(format!("cannot draw {}: panel `{}` needs at least 2 × 2 values on a positive y axis", path.display(), p.title));
+        }
+    }
+    Ok(())
+}
+
+/// One heatmap panel on a log y axis, viridis from 0 to `max`.
+fn draw_heatmap<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    p: &Heatmap,
+    (x_label, y_label): (&str, &str),
+    max: f64,
+) -> Result<(), String> {
+    use plotters::style::colors::colormaps::{ColorMap, ViridisRGB};
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    let (x0, x1) = (p.xs[0], 2.0 * p.xs[p.xs.len() - 1] - p.xs[p.xs.len() - 2]);
+    let (y0, y1) = (p.ys[0], p.ys[p.ys.len() - 1]);
+    let mut chart = ChartBuilder::on(area)
+        .caption(&p.title, ("sans-serif", 16))
+        .margin(10)
+        .x_label_area_size(36)
+        .y_label_area_size(52)
+        .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+        .map_err(|e| err(&e))?;
+    chart.configure_mesh().disable_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 13)).draw().map_err(|e| err(&e))?;
+    let ny = p.ys.len();
+    let dx = p.xs[1] - p.xs[0];
+    // Row edges halfway between rows (geometric mean on the log axis).
+    let edge = |k: usize| {
+        if k == 0 {
+            y0
+        } else if k == ny {
+            y1
+        } else {
+            (p.ys[k - 1] * p.ys[k]).sqrt()
+        }
+    };
+    let cells = p.xs.iter().enumerate().flat_map(|(i, x)| {
+        (0..ny).map(move |k| {
+            let v = (p.values[i * ny + k] / max).clamp(0.0, 1.0);
+            Rectangle::new([(*x, edge(k)), (x + dx, edge(k + 1))], ViridisRGB.get_color(v as f32).filled())
+        })
+    });
+    chart.draw_series(cells).map_err(|e| err(&e))?;
     Ok(())
 }
 

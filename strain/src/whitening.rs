@@ -91,6 +91,8 @@ pub struct Whitened {
     pub w: Vec<f64>,
     /// Whitened over [`WhitenOptions::classifier_band`].
     pub w_clf: Vec<f64>,
+    /// The PSD it was whitened by (estimated from the same samples).
+    pub psd: Psd,
 }
 
 /// Whitens the whole of `series` (which must hold no missing samples) by
@@ -110,5 +112,5 @@ pub fn whiten_series(whitener: &Whitener, series: &Series, fft_length: f64, o: &
     let mut run = scene.bind();
     let psd = welch.estimate(&series.samples)?;
     let (w, w_clf) = whiten_with(&mut run, &series.samples, &psd, (fs, series.gps_start, &series.source))?;
-    Ok(Whitened { gps_start: series.gps_start, sample_rate: fs, w, w_clf })
+    Ok(Whitened { gps_start: series.gps_start, sample_rate: fs, w, w_clf, psd })
 }

@@ -17,8 +17,8 @@
 //! penalty of wide bounds, so the bounds are part of the model and are
 //! reported with it.
 
-use super::{invert_fisher, FisherError};
-use nalgebra::DMatrix;
+use super::FisherError;
+use nalgebra::{DMatrix, SymmetricEigen};
 use std::fmt;
 
 /// The Laplace evidence of one fit.
@@ -28,10 +28,13 @@ pub struct Evidence {
     pub ln_z: f64,
     /// `ln V`, the prior volume of the bounds in the params' declared units.
     pub ln_prior_volume: f64,
-    /// `ln det F`.
+    /// `ln det F` (after clipping).
     pub ln_det_fisher: f64,
     /// `ln M`, the Gaussian's log mass inside the bounds (≤ 0).
     pub ln_mass_inside: f64,
+    /// Directions of the Fisher matrix whose curvature was raised to the
+    /// floor (see [`laplace_evidence`]): 0 for a well-determined fit.
+    pub clipped: usize,
 }
 
 /// Why a fit has no Laplace evidence.
@@ -39,7 +42,7 @@ pub struct Evidence {
 pub enum EvidenceError {
     /// A param has no finite bounds, so its uniform prior is improper.
     Unbounded(usize),
-    /// The Fisher matrix has no inverse.
+    /// The Fisher matrix has non-finite entries.
     Fisher(FisherError),
 }
 
@@ -57,33 +60,50 @@ impl fmt::Display for EvidenceError {
 /// The Laplace evidence of a fit at `x` (loss `loss`, Fisher matrix
 /// `fisher`, both in the params' declared units) under uniform priors on
 /// `bounds`.
+///
+/// The Fisher matrix is taken in units of each param's prior width, where
+/// a curvature of 2π makes the Gaussian's integral the whole width: a
+/// direction the data do not constrain (a smaller curvature), or one
+/// along which the loss still falls at a bound (a negative curvature: the
+/// fit ended there), gets that floor, so it neither earns nor costs more
+/// than its prior. [`Evidence::clipped`] counts such directions; the
+/// approximation is rough along them, and exact for a Gaussian well
+/// inside its bounds.
 pub fn laplace_evidence(loss: f64, x: &[f64], fisher: &[Vec<f64>], bounds: &[Option<(f64, f64)>]) -> Result<Evidence, EvidenceError> {
     let k = x.len();
-    let mut ln_prior_volume = 0.0;
+    let mut widths = Vec::with_capacity(k);
     for (i, b) in bounds.iter().enumerate() {
         match b {
-            Some((lo, hi)) if lo.is_finite() && hi.is_finite() && hi > lo => ln_prior_volume += (hi - lo).ln(),
+            Some((lo, hi)) if lo.is_finite() && hi.is_finite() && hi > lo => widths.push(hi - lo),
             _ => return Err(EvidenceError::Unbounded(i)),
         }
     }
-    let cov = invert_fisher(fisher).map_err(EvidenceError::Fisher)?;
-    // ln det F from the Cholesky factor of the correlation form D F D.
-    let d: Vec<f64> = (0..k).map(|i| fisher[i][i].sqrt()).collect();
-    let c = DMatrix::from_fn(k, k, |i, j| 0.5 * (fisher[i][j] + fisher[j][i]) / (d[i] * d[j]));
-    let chol = c.cholesky().ok_or(EvidenceError::Fisher(FisherError::NotFinite))?;
-    let ln_det_c: f64 = 2.0 * chol.l().diagonal().iter().map(|v| v.ln()).sum::<f64>();
-    let ln_det_fisher = ln_det_c + 2.0 * d.iter().map(|v| v.ln()).sum::<f64>();
+    let ln_prior_volume: f64 = widths.iter().map(|w| w.ln()).sum();
+    if fisher.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(EvidenceError::Fisher(FisherError::NotFinite));
+    }
+    // F in prior-width units, symmetrised; eigenvalues floored at 2π.
+    let scaled = DMatrix::from_fn(k, k, |i, j| 0.5 * (fisher[i][j] + fisher[j][i]) * widths[i] * widths[j]);
+    let eigen = SymmetricEigen::new(scaled);
+    let floor = 2.0 * std::f64::consts::PI;
+    let clipped = eigen.eigenvalues.iter().filter(|l| **l < floor).count();
+    let values = eigen.eigenvalues.map(|l| l.max(floor));
+    let ln_det_scaled: f64 = values.iter().map(|l| l.ln()).sum();
+    let ln_det_fisher = ln_det_scaled - 2.0 * widths.iter().map(|w| w.ln()).sum::<f64>();
+    // Marginal σ of the clipped Gaussian, in declared units.
+    let inverse = &eigen.eigenvectors * DMatrix::from_diagonal(&values.map(|l| 1.0 / l)) * eigen.eigenvectors.transpose();
     let ln_mass_inside: f64 = bounds
         .iter()
         .zip(x)
-        .zip(&cov.sigma)
-        .map(|((b, x), s)| {
+        .enumerate()
+        .map(|(i, (b, x))| {
             let (lo, hi) = b.expect("checked above");
+            let s = inverse[(i, i)].sqrt() * widths[i];
             (normal_cdf((hi - x) / s) - normal_cdf((lo - x) / s)).max(f64::MIN_POSITIVE).ln()
         })
         .sum();
     let ln_z = -loss + 0.5 * k as f64 * (2.0 * std::f64::consts::PI).ln() - 0.5 * ln_det_fisher - ln_prior_volume + ln_mass_inside;
-    Ok(Evidence { ln_z, ln_prior_volume, ln_det_fisher, ln_mass_inside })
+    Ok(Evidence { ln_z, ln_prior_volume, ln_det_fisher, ln_mass_inside, clipped })
 }
 
 /// The Bayesian information criterion `2 L + k ln n` of a fit with loss
@@ -143,5 +163,26 @@ mod tests {
         let edge = laplace_evidence(0.0, &[0.0], &f1, &[Some((0.0, 1.0))]).unwrap();
         assert!((inside.ln_z - edge.ln_z - 2f64.ln()).abs() < 1e-6);
         assert_eq!(laplace_evidence(0.0, &[0.0], &f1, &[None]), Err(EvidenceError::Unbounded(0)));
+        assert_eq!(inside.clipped, 0);
+    }
+
+    #[test]
+    fn an_unconstrained_direction_costs_nothing_beyond_its_prior() {
+        // A param the loss does not depend on: Z is the constrained part's
+        // evidence times (width / width) = 1, whatever its width.
+        let constrained = laplace_evidence(1.0, &[0.0], &[vec![50.0]], &[Some((-1.0, 1.0))]).unwrap();
+        for width in [0.1, 10.0] {
+            let f = vec![vec![50.0, 0.0], vec![0.0, 0.0]];
+            let e = laplace_evidence(1.0, &[0.0, 0.0], &f, &[Some((-1.0, 1.0)), Some((-width / 2.0, width / 2.0))]).unwrap();
+            assert_eq!(e.clipped, 1);
+            // Less only the floored Gaussian's mass outside the prior: its
+            // σ is width / √(2π), so ±1.25σ lie inside (ln 0.79 = −0.24).
+            assert!((e.ln_z - constrained.ln_z + 0.237).abs() < 0.01, "{} vs {}", e.ln_z, constrained.ln_z);
+        }
+        // A negative curvature (a fit against a bound) is floored too, not an error.
+        let f = vec![vec![50.0, 0.0], vec![0.0, -3.0]];
+        let e = laplace_evidence(1.0, &[0.0, 1.0], &f, &[Some((-1.0, 1.0)), Some((0.0, 1.0))]).unwrap();
+        assert_eq!(e.clipped, 1);
+        assert!(e.ln_z.is_finite() && e.ln_z < constrained.ln_z);
     }
 }

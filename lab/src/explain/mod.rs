@@ -1,0 +1,436 @@
+//! `gwml explain`'s physics: fit every candidate explanation of a trigger —
+//! each glitch family of `std::glitch` and a TaylorF2 chirp — to the
+//! whitened data around it, and rank them by Laplace evidence against
+//! each other and against Gaussian noise alone.
+//!
+//! The scenes are `lab/models/glitch/explain.gw` (its header gives the
+//! likelihood). For each family, [`Explainer::explain`]:
+//! 1. tries a grid of starting shapes seeded from the trigger's loudest
+//!    Q tile ([`Seed`]: time, frequency, Q), taking each start's amplitude
+//!    and phase from the data's projection on the template's two
+//!    quadratures (two forward evaluations, no optimiser);
+//! 2. refines the best [`STARTS_REFINED`] starts with L-BFGS inside the
+//!    bounds (the phase is periodic and left unbounded);
+//! 3. takes the Fisher matrix at the best fit (`runtime::fit::fit_run`), its
+//!    1σ errors, χ²/dof and the Laplace evidence, with the phase's prior a
+//!    full period around its estimate.
+
+mod campaign;
+mod causes;
+mod report;
+mod seeds;
+
+pub use campaign::*;
+pub use causes::*;
+pub use report::*;
+pub use seeds::*;
+
+use gwml_compiler::Options;
+use gwml_runtime::fit::{bic, fit_run, laplace_evidence, minimize, Algorithm, Score, Settings};
+use gwml_runtime::{Error, Model, Run, Scene, Value};
+use gwml_strain::whitening::Whitened;
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+/// The scenes of the fits.
+pub const EXPLAIN_SOURCE: &str = include_str!("../../models/glitch/explain.gw");
+
+/// How many of the best starting points each family refines with L-BFGS.
+pub const STARTS_REFINED: usize = 2;
+
+/// A starting point: `dt` and the shape params.
+type Start = (f64, Vec<f64>);
+
+/// A free param of a fit scene: name, unit, bounds.
+type FreeParam = (String, String, Option<(f64, f64)>);
+
+/// A candidate explanation: one scene of `explain.gw`.
+#[derive(Clone, Copy, Debug)]
+pub struct Family {
+    /// The scene's name (`blip`, `koi_fish`, ...).
+    pub scene: &'static str,
+    /// The Gravity Spy class it stands for (as `gwml scan` labels triggers).
+    pub label: &'static str,
+    /// Starting points for a seed: `dt` and the shape params (the scene's
+    /// free params after `dt`, `snr` and `phi`).
+    starts: fn(&Seed) -> Vec<Start>,
+}
+
+/// Every candidate, in the order of `explain.gw`.
+pub const FAMILIES: [Family; 5] = [
+    Family { scene: "blip", label: "Blip", starts: blip_starts },
+    Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts },
+    Family { scene: "whistle", label: "Whistle", starts: whistle_starts },
+    Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts },
+    Family { scene: "chirp", label: "Chirp", starts: chirp_starts },
+];
+
+/// Every combination of one value per axis, each at time offset `dt`.
+fn grid(dt: f64, axes: &[&[f64]]) -> Vec<Start> {
+    let shapes = axes.iter().fold(vec![Vec::new()], |acc: Vec<Vec<f64>>, axis| {
+        acc.iter().flat_map(|g| axis.iter().map(move |v| [g.as_slice(), &[*v]].concat())).collect()
+    });
+    shapes.into_iter().map(|s| (dt, s)).collect()
+}
+
+/// `v` scaled by each factor.
+fn scaled<const N: usize>(v: f64, factors: [f64; N]) -> [f64; N] {
+    factors.map(|f| f * v)
+}
+
+fn blip_starts(s: &Seed) -> Vec<Start> {
+    grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[2.5, 4.5, s.q.clamp(1.5, 12.0)]])
+}
+
+fn koi_fish_starts(s: &Seed) -> Vec<Start> {
+    grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[3.0, 5.0], &[25.0, 45.0], &[0.25], &[0.02]])
+}
+
+// Around the ridge's V if there is one; a coarse grid below the loudest
+// tile (a whistle is loudest near its lowest frequency, where it sweeps
+// slowest) at and either side of its time.
+fn whistle_starts(s: &Seed) -> Vec<Start> {
+    let f = s.frequency;
+    let mut starts: Vec<Start> = [-0.1, 0.0, 0.1]
+        .iter()
+        .flat_map(|o| grid(s.dt + o, &[&[0.7 * f, 0.85 * f, f], &[150.0, 350.0, 650.0], &[0.1, 0.2, 0.3]]))
+        .collect();
+    // Along the ridge, each half-width with the span the curvature implies.
+    if let Some(t) = s.track {
+        let halves = [0.08, 0.11, 0.14, 0.18, 0.22, 0.27, 0.33].into_iter().chain(t.half);
+        for half in halves {
+            let span = t.curvature * half * half;
+            starts.extend(grid(t.dt, &[&scaled(t.f_min, [0.98, 1.0, 1.02]), &scaled(span, [0.9, 1.0, 1.1]), &[half]]));
+        }
+    }
+    starts
+}
+
+// Around the envelope's arches if there are any, and a coarse grid (the
+// arch rate needs a fine one: a template 2 Hz off loses the match).
+fn scratchy_starts(s: &Seed) -> Vec<Start> {
+    let mut starts =
+        grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[8.0, 11.0, 14.0, 17.0, 20.0, 24.0, 28.0, 33.0], &[0.5, 1.0, 1.6]]);
+    if let Some(a) = s.arches {
+        starts.extend(grid(
+            a.dt,
+            &[&scaled(a.f0, [0.995, 1.0, 1.005]), &scaled(a.rate, [0.95, 1.0, 1.05]), &scaled(a.duration, [0.5, 0.7, 1.0, 1.4])],
+        ));
+    }
+    starts
+}
+
+// The loudest tile sits just before the merger.
+fn chirp_starts(s: &Seed) -> Vec<Start> {
+    [0.0, 0.01, 0.03].iter().flat_map(|o| grid(s.dt + o, &[&[12.0, 18.0, 25.0, 33.0], &[0.4, 0.8]])).collect()
+}
+
+/// What the fits are compiled for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExplainOptions {
+    /// Sample rate of the whitened data (Hz).
+    pub sample_rate: f64,
+    /// Seconds of data fitted, centred on the trigger.
+    pub window: f64,
+    /// The band the data were whitened over (Hz); the models are whitened over it too.
+    pub band: (f64, f64),
+}
+
+/// The stretch of whitened data a trigger's fits see.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Window {
+    /// GPS time of the window's centre sample (where `dt = 0`).
+    pub gps_centre: f64,
+    /// GPS time of its first sample.
+    pub gps_start: f64,
+    /// Index of its first sample in the whitened stretch it was cut from.
+    pub offset: usize,
+    /// Samples per second.
+    pub sample_rate: f64,
+    /// The whitened samples.
+    pub d: Vec<f64>,
+    /// The PSD the data were whitened by, on the window's `len / 2 + 1` bins.
+    pub psd: Vec<f64>,
+}
+
+/// Seconds at each end of whitened data that a window may not reach (the
+/// whitening's taper and filter edges).
+pub const EDGE_SECONDS: f64 = 2.0;
+
+/// Cuts `samples` whitened samples centred on `gps` out of `w`, or says
+/// why it cannot (too near an end of the data, or longer than it).
+pub fn window_at(w: &Whitened, gps: f64, samples: usize) -> Result<Window, String> {
+    let fs = w.sample_rate;
+    let (usable_start, usable_end) = (w.gps_start + EDGE_SECONDS, w.gps_start + w.w.len() as f64 / fs - EDGE_SECONDS);
+    let seconds = samples as f64 / fs;
+    let first = ((gps - w.gps_start) * fs).round() as i64 - (samples / 2) as i64;
+    let gps_start = w.gps_start + first as f64 / fs;
+    if seconds > usable_end - usable_start || first < 0 || gps_start < usable_start || gps_start + seconds > usable_end {
+        return Err(format!(
+            "a {seconds} s window around GPS {gps} needs GPS {:.3}..{:.3}, but the whitened data are usable over GPS {usable_start:.3}..{usable_end:.3} \
+             only (the time is too near an end of the data, or the window too long)",
+            gps - seconds / 2.0,
+            gps + seconds / 2.0,
+        ));
+    }
+    let offset = first as usize;
+    Ok(Window {
+        gps_centre: gps_start + (samples / 2) as f64 / fs,
+        gps_start,
+        offset,
+        sample_rate: fs,
+        d: w.w[offset..offset + samples].to_vec(),
+        psd: w.psd.resample(fs / samples as f64, samples / 2 + 1),
+    })
+}
+
+/// Explains the trigger at `gps` in whitened data `w` (whitened over the
+/// band the explainer was compiled for): its window, seed and fits.
+pub fn explain_at(explainer: &Explainer, w: &Whitened, gps: f64, band: (f64, f64)) -> Result<(Window, Seed, Explanation), String> {
+    let win = window_at(w, gps, explainer.samples())?;
+    let seed = seed_of(&win, w.sample_rate, band)?;
+    let explanation = explainer.explain(&win.d, &win.psd, &seed).map_err(|e| e.render(false))?;
+    Ok((win, seed, explanation))
+}
+
+/// The fit scenes, compiled once for a window and reused for every trigger.
+pub struct Explainer {
+    scenes: Vec<(Family, Scene)>,
+    samples: usize,
+}
+
+/// One fitted param.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    /// The scene's param name.
+    pub name: String,
+    /// Its unit ("1" when dimensionless).
+    pub unit: String,
+    /// Best fit.
+    pub value: f64,
+    /// 1σ from the Fisher matrix (none when it has no inverse).
+    pub sigma: Option<f64>,
+    /// The prior's bounds (the phase: the period around its estimate).
+    pub bounds: (f64, f64),
+}
+
+/// One family's fit to a trigger.
+#[derive(Clone, Debug)]
+pub struct FamilyFit {
+    /// The family.
+    pub family: Family,
+    /// Its params: `dt`, `snr`, `phi`, then the shape's.
+    pub params: Vec<Estimate>,
+    /// χ² of the residual per degree of freedom (samples − params).
+    pub chi2_dof: f64,
+    /// Loss, Laplace evidence and BIC.
+    pub score: Score,
+    /// The whitened best-fit model over the window.
+    pub model: Vec<f64>,
+    /// Scene evaluations the fit took (forward, and value with gradient).
+    pub evaluations: usize,
+}
+
+impl FamilyFit {
+    /// `ln Z`, or −∞ when the fit has no evidence.
+    pub fn ln_z(&self) -> f64 {
+        self.score.evidence.as_ref().map_or(f64::NEG_INFINITY, |e| e.ln_z)
+    }
+
+    /// The estimate of param `name`.
+    pub fn param(&self, name: &str) -> Option<&Estimate> {
+        self.params.iter().find(|p| p.name == name)
+    }
+}
+
+/// Every family's fit to one trigger, best first.
+#[derive(Clone, Debug)]
+pub struct Explanation {
+    /// The fits, by decreasing evidence.
+    pub fits: Vec<FamilyFit>,
+    /// The loss of noise alone, ½ Σ d²: its `ln Z` is minus this.
+    pub noise_loss: f64,
+    /// Samples fitted.
+    pub samples: usize,
+}
+
+impl Explanation {
+    /// `ln Z` of Gaussian noise alone (no params).
+    pub fn ln_z_noise(&self) -> f64 {
+        -self.noise_loss
+    }
+
+    /// The family with the highest evidence, if it beats noise alone.
+    pub fn best(&self) -> Option<&FamilyFit> {
+        self.fits.first().filter(|f| f.ln_z() > self.ln_z_noise())
+    }
+
+    /// `ln B` of a fit against the best one (≤ 0).
+    pub fn ln_bayes_vs_best(&self, fit: &FamilyFit) -> f64 {
+        fit.ln_z() - self.fits.first().map_or(f64::NEG_INFINITY, FamilyFit::ln_z)
+    }
+
+    /// `ln B` of a fit against noise alone.
+    pub fn ln_bayes_vs_noise(&self, fit: &FamilyFit) -> f64 {
+        fit.ln_z() - self.ln_z_noise()
+    }
+
+    /// Scene evaluations of all the fits.
+    pub fn evaluations(&self) -> usize {
+        self.fits.iter().map(|f| f.evaluations).sum()
+    }
+}
+
+impl Explainer {
+    /// Checks `explain.gw` and compiles each family's scene for `o`.
+    pub fn new(o: &ExplainOptions) -> Result<Explainer, Error> {
+        let samples = (o.window * o.sample_rate).round() as usize;
+        if !(o.window > 0.0 && samples >= 64 && o.band.0 >= 0.0 && o.band.1 > o.band.0) {
+            return Err(Error::Bind(format!(
+                "cannot fit a {} s window at {} Hz over {}..{} Hz: the window needs at least 64 samples and the band must be increasing",
+                o.window, o.sample_rate, o.band.0, o.band.1
+            )));
+        }
+        let model = Model::from_source("lab/models/glitch/explain.gw", EXPLAIN_SOURCE)?;
+        let knobs = [
+            ("sample_rate", format!("{:?} Hz", o.sample_rate)),
+            ("window", format!("{:?} s", samples as f64 / o.sample_rate)),
+            ("f_low", format!("{:?} Hz", o.band.0)),
+            ("f_high", format!("{:?} Hz", o.band.1)),
+        ];
+        let options = Options { knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(), ..Options::default() };
+        let scenes = FAMILIES.iter().map(|f| Ok((*f, model.scene_with(Some(f.scene), options.clone())?))).collect::<Result<_, Error>>()?;
+        Ok(Explainer { scenes, samples })
+    }
+
+    /// Samples of the window the scenes take.
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+
+    /// Fits every family to the whitened window `d` (centred on the
+    /// trigger) whose PSD on the window's `samples / 2 + 1` bins is `psd`.
+    pub fn explain(&self, d: &[f64], psd: &[f64], seed: &Seed) -> Result<Explanation, Error> {
+        if d.len() != self.samples {
+            return Err(Error::Bind(format!("the window has {} samples, the fits were compiled for {}", d.len(), self.samples)));
+        }
+        if let Some(i) = d.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Bind(format!("the whitened window has a non-finite sample at index {i}")));
+        }
+        let mut fits = self.scenes.iter().map(|(family, scene)| fit_family(family, scene, d, psd, seed)).collect::<Result<Vec<_>, _>>()?;
+        fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
+        let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();
+        Ok(Explanation { fits, noise_loss, samples: d.len() })
+    }
+}
+
+/// The free params of a family scene (its `grad loss wrt` list): names,
+/// units and bounds.
+fn free_params(scene: &Scene) -> Vec<FreeParam> {
+    let f = scene.ir();
+    let loss = f.outputs.iter().position(|o| o.name == "loss");
+    f.grads
+        .iter()
+        .filter(|g| Some(g.output) == loss)
+        .map(|g| &f.params[g.param])
+        .map(|p| (p.name.clone(), p.unit.clone(), p.bounds))
+        .collect()
+}
+
+fn set(run: &mut Run, names: &[FreeParam], x: &[f64]) -> Result<(), Error> {
+    for ((name, _, _), v) in names.iter().zip(x) {
+        run.param(name, *v)?;
+    }
+    Ok(())
+}
+
+/// Fits one family: starts, L-BFGS, Fisher matrix and evidence.
+fn fit_family(family: &Family, scene: &Scene, d: &[f64], psd: &[f64], seed: &Seed) -> Result<FamilyFit, Error> {
+    let mut run = scene.bind();
+    run.input_real("d", d)?;
+    run.input_real("psd", psd)?;
+    let free = free_params(scene);
+    if free.len() < 3 || free[0].0 != "dt" || free[1].0 != "snr" || free[2].0 != "phi" {
+        return Err(Error::Bind(format!("the `{}` scene must fit `dt`, `snr` and `phi` first", family.scene)));
+    }
+    if let Some(p) = free.iter().enumerate().find(|(i, p)| *i != 2 && p.2.is_none()) {
+        return Err(Error::Bind(format!("param `{}` of the `{}` scene needs bounds: they are its prior", p.1 .0, family.scene)));
+    }
+    let bounds: Vec<Option<(f64, f64)>> = free.iter().map(|p| p.2).collect();
+    let inside = |i: usize, v: f64| match bounds[i] {
+        Some((lo, hi)) => v.clamp(lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo)),
+        None => v,
+    };
+    let mut evaluations = 0;
+    // 1. Starting points, each with the amplitude and phase that best match the data.
+    let mut ranked = Vec::new();
+    {
+        for (dt, shape) in (family.starts)(seed) {
+            let mut x = vec![dt, 1.0, 0.0];
+            x.extend(shape);
+            let mut x: Vec<f64> = x.iter().enumerate().map(|(i, v)| inside(i, *v)).collect();
+            let mut quadrature = [0.0; 2];
+            for (k, phi) in [0.0, FRAC_PI_2].into_iter().enumerate() {
+                x[2] = phi;
+                set(&mut run, &free, &x)?;
+                quadrature[k] = run.forward()?.scalar("overlap")?;
+                evaluations += 1;
+            }
+            let rho = quadrature[0].hypot(quadrature[1]);
+            if rho.is_finite() {
+                x[1] = inside(1, rho);
+                x[2] = quadrature[1].atan2(quadrature[0]);
+                ranked.push((rho, x));
+            }
+        }
+    }
+    ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+    if ranked.is_empty() {
+        return Err(Error::Bind(format!("no starting point of the `{}` fit has a finite match with the data", family.scene)));
+    }
+    // 2. L-BFGS from the best starts.
+    let settings = Settings { max_steps: 100, rel_tol: 1e-9, ..Settings::new(Algorithm::Lbfgs) };
+    let mut best: Option<gwml_runtime::fit::Minimum> = None;
+    for (_, x0) in ranked.iter().take(STARTS_REFINED) {
+        let eval = |x: &[f64]| -> Result<(f64, Vec<f64>), Error> {
+            set(&mut run, &free, x)?;
+            let out = run.value_and_grad()?;
+            let grad = free.iter().map(|p| out.grad("loss", &p.0).unwrap_or(0.0)).collect();
+            Ok((out.scalar("loss")?, grad))
+        };
+        let m = minimize(eval, x0, &bounds, &settings, |_| {})?;
+        evaluations += m.evaluations;
+        if best.as_ref().is_none_or(|b| m.loss < b.loss) {
+            best = Some(m);
+        }
+    }
+    let mut best = best.expect("at least one start");
+    best.x[2] = best.x[2].rem_euclid(TAU);
+    // 3. Fisher matrix and errors at the best fit (a few more steps if it can still improve).
+    set(&mut run, &free, &best.x)?;
+    let fit = fit_run(&mut run, Some("loss"), &Settings { max_steps: 50, ..settings }, |_| {})?;
+    evaluations += fit.minimum.evaluations + 2 * free.len() + 2;
+    let mut x = fit.minimum.x.clone();
+    x[2] = x[2].rem_euclid(TAU);
+    set(&mut run, &free, &x)?;
+    let prior: Vec<Option<(f64, f64)>> =
+        bounds.iter().enumerate().map(|(i, b)| if i == 2 { Some((x[2] - PI, x[2] + PI)) } else { *b }).collect();
+    let loss = fit.minimum.loss;
+    let score =
+        Score { loss, params: x.len(), evidence: laplace_evidence(loss, &x, &fit.fisher, &prior), bic: bic(loss, x.len(), d.len()) };
+    let sigma = fit.covariance.as_ref().ok().map(|c| c.sigma.clone());
+    let params = free
+        .iter()
+        .enumerate()
+        .map(|(i, (name, unit, _))| Estimate {
+            name: name.clone(),
+            unit: unit.clone(),
+            value: x[i],
+            sigma: sigma.as_ref().map(|s| s[i]),
+            bounds: prior[i].expect("every param of a family has bounds"),
+        })
+        .collect();
+    let Value::RealArray(model) = run.forward()?.value("model")?.clone() else {
+        return Err(Error::Bind(format!("the `{}` scene's `model` is not a real array", family.scene)));
+    };
+    Ok(FamilyFit { family: *family, params, chi2_dof: 2.0 * loss / (d.len() - x.len()) as f64, score, model, evaluations: evaluations + 1 })
+}
