@@ -153,3 +153,63 @@ pub fn campaign(out: &Path, per_class: usize, seed: u64) -> Result<(), String> {
     println!("wrote {}/summary.md and outcomes.csv", out.display());
     Ok(())
 }
+
+/// One trigger's explanation, or why there is none.
+pub type Explained = Result<(Window, gwml_lab::explain::Seed, Explanation), String>;
+
+/// Explains the trigger at each of `times` in `input` (`gwml scan
+/// --explain`): the fits are compiled once per sample rate; a time whose
+/// data cannot be whitened (near an end or a gap) gets its error.
+pub fn explain_times(input: &StrainInput, times: &[f64], progress: impl Fn()) -> Vec<Explained> {
+    let mut compiled: Option<(f64, Explainer)> = None;
+    let mut out = Vec::with_capacity(times.len());
+    for &gps in times {
+        let mut one = || -> Explained {
+            let (_, w) = whitened_around(input, gps, EXPLAIN_BAND)?;
+            if compiled.as_ref().is_none_or(|(fs, _)| *fs != w.sample_rate) {
+                compiled = Some((w.sample_rate, explainer(w.sample_rate, 2.0)?));
+            }
+            let (_, e) = compiled.as_ref().expect("compiled above");
+            explain_at(e, &w, gps, band_for(w.sample_rate)).map_err(|e| format!("error: {e}"))
+        };
+        out.push(one());
+        progress();
+    }
+    out
+}
+
+/// The columns `gwml scan --explain` adds to its CSV.
+pub const CSV_COLUMNS: &str = "family,ln_b_vs_noise,ln_b_vs_second,family_params";
+
+/// A trigger's [`CSV_COLUMNS`]: the best family (`noise` when none beats
+/// it; empty with the reason in the params column when there is no
+/// explanation), its Bayes factors, and its params as `name=value±sigma`
+/// separated by `;`.
+pub fn csv_fields(r: &Explained) -> String {
+    match r {
+        Ok((win, _, e)) => {
+            let Some(best) = e.fits.first() else { return "noise,,,".into() };
+            let second = e.fits.get(1).map_or(String::new(), |s| format!("{:.3}", best.ln_z() - s.ln_z()));
+            let params: Vec<String> = best
+                .params
+                .iter()
+                .map(|p| {
+                    let value = if p.name == "dt" { win.gps_centre + p.value } else { p.value };
+                    let name = if p.name == "dt" { "t0_gps" } else { p.name.as_str() };
+                    format!("{name}={value:.6}±{}", p.sigma.map_or("nan".to_string(), |s| format!("{s:.3e}")))
+                })
+                .collect();
+            let family = if e.best().is_some() { best.family.scene } else { "noise" };
+            format!("{family},{:.3},{second},{}", e.ln_bayes_vs_noise(best), params.join(";"))
+        }
+        Err(err) => format!(",,,\"{}\"", err.replace('"', "'")),
+    }
+}
+
+/// A trigger's explanation as JSON (`{"error": ...}` when there is none).
+pub fn json_field(r: &Explained) -> serde_json::Value {
+    match r {
+        Ok((win, seed, e)) => gwml_lab::explain::explanation_json(e, win, seed),
+        Err(err) => serde_json::json!({ "error": err }),
+    }
+}

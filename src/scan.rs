@@ -2,6 +2,7 @@
 //! `gwml_lab::strain` (simulated strain) and `gwml_strain` (the scan).
 
 use crate::commands::render;
+use crate::explain::Explained;
 use crate::strain_input::{Source, StrainInput, StrainRun as Run};
 use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate, write_truth, NoiseCurve, StrainOptions};
@@ -160,6 +161,11 @@ pub struct ScanArgs {
     /// whatever the files' length).
     #[arg(long, value_name = "SECONDS", default_value_t = 1024.0)]
     pub block: f64,
+    /// Explain every trigger as `gwml explain` does (physics fits of each
+    /// glitch family and a chirp, Bayes factors): adds the best family, its
+    /// Bayes factors and params to each row. About 0.7 s per trigger.
+    #[arg(long)]
+    pub explain: bool,
 }
 
 /// The classifier the arguments ask for.
@@ -290,22 +296,41 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     report.skipped.append(&mut gaps);
     report.skipped.sort_by(|x, y| x.gps_start.total_cmp(&y.gps_start));
     let classes: Vec<String> = scanner.classifier().map_or(Vec::new(), |c| c.manifest.classes.clone());
-    let text = if format == "csv" { triggers_csv(&report, &classes) } else { triggers_json(&report, &classes) };
+    let explain_started = Instant::now();
+    let explained = if a.explain {
+        let bar = ProgressBar::new(report.rows.len() as u64);
+        bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} triggers explained, ETA {eta}").expect("template"));
+        let times: Vec<f64> = report.rows.iter().map(|r| r.trigger.time).collect();
+        let explained = crate::explain::explain_times(&a.input, &times, || bar.inc(1));
+        bar.finish_and_clear();
+        explained
+    } else {
+        Vec::new()
+    };
+    let text = if format == "csv" { triggers_csv(&report, &classes, &explained) } else { triggers_json(&report, &classes, &explained) };
     std::fs::write(&a.out, text).map_err(|e| format!("error: cannot write {}: {e}", a.out.display()))?;
     if let Some(dir) = &a.plots {
         plot_triggers(dir, &report, &classes)?;
     }
-    print!("{}", summary(&report, &classes, total, started.elapsed().as_secs_f64()));
+    print!("{}", summary(&report, &classes, total, explain_started.duration_since(started).as_secs_f64()));
     let st = report.stage_seconds;
     println!(
         "time: reading the first block and compiling {setup_seconds:.2} s, reading and scanning {:.2} s on {threads} threads \
          (CPU s: PSD {:.2}, whitening {:.2}, Q tiles {:.2}, classifier {:.2})",
-        started.elapsed().as_secs_f64() - setup_seconds,
+        explain_started.duration_since(started).as_secs_f64() - setup_seconds,
         st.psd,
         st.whiten,
         st.tiles,
         st.classify
     );
+    if a.explain {
+        let failed = explained.iter().filter(|e| e.is_err()).count();
+        println!(
+            "explained {} triggers in {:.2} s ({failed} without an explanation: their data are too near an end or a gap)",
+            explained.len(),
+            explain_started.elapsed().as_secs_f64()
+        );
+    }
     println!("wrote {} ({} triggers)", a.out.display(), report.rows.len());
     Ok(())
 }
@@ -318,13 +343,16 @@ fn label_of<'c>(row: &gwml_strain::scan::Row, classes: &'c [String]) -> (&'c str
     }
 }
 
-fn triggers_csv(report: &Report, classes: &[String]) -> String {
+fn triggers_csv(report: &Report, classes: &[String], explained: &[Explained]) -> String {
     let mut out = String::from("gps_time,ifo,snr,peak_frequency,q,duration,label,confidence,start,end,f_start,f_end,tiles");
+    if !explained.is_empty() {
+        let _ = write!(out, ",{}", crate::explain::CSV_COLUMNS);
+    }
     for c in classes {
         let _ = write!(out, ",p_{}", c.to_lowercase().replace(' ', "_"));
     }
     out.push('\n');
-    for row in &report.rows {
+    for (i, row) in report.rows.iter().enumerate() {
         let t = &row.trigger;
         let (label, confidence) = label_of(row, classes);
         let confidence = if row.verdict.is_some() { format!("{confidence:.4}") } else { String::new() };
@@ -345,6 +373,9 @@ fn triggers_csv(report: &Report, classes: &[String]) -> String {
             t.f_end,
             t.tiles
         );
+        if let Some(e) = explained.get(i) {
+            let _ = write!(out, ",{}", crate::explain::csv_fields(e));
+        }
         if let Some(v) = &row.verdict {
             v.probabilities.iter().for_each(|p| {
                 let _ = write!(out, ",{p:.4}");
@@ -355,11 +386,12 @@ fn triggers_csv(report: &Report, classes: &[String]) -> String {
     out
 }
 
-fn triggers_json(report: &Report, classes: &[String]) -> String {
+fn triggers_json(report: &Report, classes: &[String], explained: &[Explained]) -> String {
     let rows: Vec<serde_json::Value> = report
         .rows
         .iter()
-        .map(|row| {
+        .enumerate()
+        .map(|(i, row)| {
             let t = &row.trigger;
             let (label, confidence) = label_of(row, classes);
             let mut v = serde_json::json!({
@@ -371,6 +403,9 @@ fn triggers_json(report: &Report, classes: &[String]) -> String {
                 v["label"] = label.into();
                 v["confidence"] = confidence.into();
                 v["probabilities"] = classes.iter().cloned().zip(verdict.probabilities.iter().copied()).collect();
+            }
+            if let Some(e) = explained.get(i) {
+                v["explanation"] = crate::explain::json_field(e);
             }
             v
         })

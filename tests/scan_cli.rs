@@ -207,4 +207,17 @@ fn the_loudest_tile_is_on_the_glitch_and_bad_times_are_errors() {
     fails_with(&gwml(&["explain", &file, "--gps", "1264000101"]), "missing data");
     fails_with(&gwml(&["explain", &file, "--gps", "1264000001"]), "too near an end");
     fails_with(&gwml(&["explain", &file, "--gps", &gps.to_string(), "--window", "40"]), "--window 40");
+    // `gwml scan --explain` writes the best family, Bayes factors and params into each row.
+    let csv = temp("explained.csv").display().to_string();
+    let out = gwml(&["scan", &file, "--explain", "--out", &csv]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let family = header.iter().position(|h| *h == "family").expect("a family column");
+    let params = header.iter().position(|h| *h == "family_params").expect("a params column");
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert!(!rows.is_empty());
+    let explained = rows.iter().filter(|r| ["blip", "koi_fish", "whistle", "scratchy", "chirp"].contains(&r[family])).count();
+    assert!(2 * explained >= rows.len(), "{explained} of {} triggers explained by a family: {text}", rows.len());
+    assert!(rows.iter().filter(|r| !r[family].is_empty() && r[family] != "noise").all(|r| r[params].starts_with("t0_gps=")), "{text}");
 }
