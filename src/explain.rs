@@ -2,7 +2,7 @@
 //! strain around one GPS time, rank them by Bayes factor, name a likely
 //! cause, and draw the fit with the Q-scans of the data and the residual.
 
-use crate::qscan::{q_images, whitened_around};
+use crate::qscan::{q_images, whitened_around, whitener};
 use crate::strain_input::StrainInput;
 use gwml_lab::explain::{explain_at, explanation_json, explanation_text, ExplainOptions, Explainer, Explanation, Window};
 use gwml_lab::plot::{lines_over_heatmaps_plot, Heatmap};
@@ -48,7 +48,7 @@ pub fn explainer(sample_rate: f64, window: f64) -> Result<Explainer, String> {
 /// `gwml explain`.
 pub fn explain(a: ExplainArgs) -> Result<(), String> {
     let compile = Instant::now();
-    let (series, w) = whitened_around(&a.input, a.gps, EXPLAIN_BAND)?;
+    let (series, w) = whitened_around(&whitener()?, &a.input, a.gps, EXPLAIN_BAND)?;
     let band = band_for(w.sample_rate);
     let explainer = explainer(w.sample_rate, a.window)?;
     let compile_seconds = compile.elapsed().as_secs_f64();
@@ -163,9 +163,10 @@ pub type Explained = Result<(Window, gwml_lab::explain::Seed, Explanation), Stri
 pub fn explain_times(input: &StrainInput, times: &[f64], progress: impl Fn()) -> Vec<Explained> {
     let mut compiled: Option<(f64, Explainer)> = None;
     let mut out = Vec::with_capacity(times.len());
+    let whitening = whitener();
     for &gps in times {
         let mut one = || -> Explained {
-            let (_, w) = whitened_around(input, gps, EXPLAIN_BAND)?;
+            let (_, w) = whitened_around(whitening.as_ref().map_err(Clone::clone)?, input, gps, EXPLAIN_BAND)?;
             if compiled.as_ref().is_none_or(|(fs, _)| *fs != w.sample_rate) {
                 compiled = Some((w.sample_rate, explainer(w.sample_rate, 2.0)?));
             }

@@ -35,19 +35,24 @@ pub struct QscanArgs {
     /// Highest frequency tiled (Hz); lowered to what Q and Nyquist allow.
     #[arg(long, default_value_t = 2048.0)]
     pub fmax: f64,
-    /// The PNG to write.
+    /// The PNG to write (without it, only the loudest tiles are printed).
     #[arg(long, value_name = "Q.png")]
-    pub out: PathBuf,
+    pub out: Option<PathBuf>,
+}
+
+/// The whitening scene, compiled for the context's length on first use.
+pub fn whitener() -> Result<Whitener, String> {
+    Whitener::new().map_err(|e| format!("error: {e}"))
 }
 
 /// Whitened strain around `gps`: [`CONTEXT_SECONDS`] s read, whitened by
-/// its own PSD over `band`.
-pub fn whitened_around(input: &StrainInput, gps: f64, band: (f64, f64)) -> Result<(Series, Whitened), String> {
+/// its own PSD over `band` with `whitener` (reused across times, so its
+/// scene is compiled once).
+pub fn whitened_around(whitener: &Whitener, input: &StrainInput, gps: f64, band: (f64, f64)) -> Result<(Series, Whitened), String> {
     let series = input.around(gps, CONTEXT_SECONDS)?;
-    let whitener = Whitener::new().map_err(|e| format!("error: {e}"))?;
     let top = band.1.min(series.sample_rate / 2.0);
     let options = WhitenOptions { taper: 2.0, band: (band.0, top), classifier_band: (band.0, top) };
-    let w = whiten_series(&whitener, &series, CONTEXT_FFT_LENGTH, &options).map_err(|e| format!("error: {e}"))?;
+    let w = whiten_series(whitener, &series, CONTEXT_FFT_LENGTH, &options).map_err(|e| format!("error: {e}"))?;
     Ok((series, w))
 }
 
@@ -81,6 +86,17 @@ pub fn q_images(w: &Whitened, gps: f64, durations: &[f64], band: (f64, f64)) -> 
         .collect()
 }
 
+/// The Q-transform image of a whole array `x` (already white) sampled at
+/// `sample_rate` from time `start`: every Q plane from 10 Hz (or 4 cycles of
+/// the data's duration) to Nyquist, the loudest plane interpolated over
+/// the array's span. The REPL's `:qscan EXPR`.
+pub fn q_image_of(x: &[f64], sample_rate: f64, start: f64) -> Result<QImage, String> {
+    let duration = x.len() as f64 / sample_rate;
+    let tiling = QOptions { f_range: ((4.0 / duration).max(10.0), sample_rate / 2.0), ..QOptions::default() };
+    let o = ImageOptions { outseg: (start, start + duration), search: None, times: 400, frequencies: 250 };
+    gwml_strain::qimage::q_image(x, sample_rate, start, &tiling, &o).map_err(|e| format!("error: {e}"))
+}
+
 /// Draws Q images side by side (two columns), times relative to `gps`.
 pub fn plot_q_images(path: &std::path::Path, title: &str, gps: f64, images: &[(String, &QImage)]) -> Result<(), String> {
     let times: Vec<Vec<f64>> = images.iter().map(|(_, i)| i.times.iter().map(|t| t - gps).collect()).collect();
@@ -98,11 +114,13 @@ pub fn qscan(a: QscanArgs) -> Result<(), String> {
         return Err("error: --durations needs at least one duration".into());
     }
     let band = (a.fmin, a.fmax);
-    let (series, w) = whitened_around(&a.input, a.gps, band)?;
+    let (series, w) = whitened_around(&whitener()?, &a.input, a.gps, band)?;
     let images = q_images(&w, a.gps, &a.durations, band)?;
     let named: Vec<(String, &QImage)> = a.durations.iter().zip(&images).map(|(d, i)| (format!("{d} s"), i)).collect();
     let title = format!("{} Q-scan at GPS {:.3}", series.detector, a.gps);
-    plot_q_images(&a.out, &title, a.gps, &named)?;
+    if let Some(out) = &a.out {
+        plot_q_images(out, &title, a.gps, &named)?;
+    }
     for (d, img) in a.durations.iter().zip(&images) {
         let m = img.max();
         println!(
@@ -116,6 +134,8 @@ pub fn qscan(a: QscanArgs) -> Result<(), String> {
             m.frequency
         );
     }
-    println!("wrote {}", a.out.display());
+    if let Some(out) = &a.out {
+        println!("wrote {}", out.display());
+    }
     Ok(())
 }

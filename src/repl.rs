@@ -7,6 +7,7 @@
 //! earlier definitions. Redefining a name replaces it, and since the whole
 //! session is recompiled, its dependents follow.
 
+use clap::Parser;
 use gwml::compiler::ir::{Function, Precision, UnknownSetting};
 use gwml::compiler::{Options, Program};
 use gwml::{Error, Model, Value};
@@ -23,6 +24,13 @@ use std::rc::Rc;
 use std::time::Instant;
 
 const SCENE: &str = "__repl";
+
+/// `:qscan STRAIN --gps T ...` parses its words as `gwml qscan` does.
+#[derive(clap::Parser)]
+struct QscanCommand {
+    #[command(flatten)]
+    args: crate::qscan::QscanArgs,
+}
 const VALUE: &str = "__value";
 
 /// Commands, for `:help` and completion.
@@ -37,6 +45,11 @@ const COMMANDS: &[(&str, &str)] = &[
     (":run", ":run SCENE [NAME=VALUE ...]      run a loaded scene"),
     (":save", ":save FILE                       write the session as a .gw file"),
     (":plot", ":plot EXPR to FILE.png              line plot of an array against its grid"),
+    (
+        ":qscan",
+        ":qscan EXPR [to FILE.png]          Q-transform of an array over a time grid (s)\n  \
+         :qscan STRAIN --gps T [--out Q.png] Q-scans of a strain file, as `gwml qscan`",
+    ),
     (":precision", ":precision f64|f32|mixed         working precision"),
     (":defs", ":defs                            list the session's definitions"),
     (":help", ":help                            this list"),
@@ -472,6 +485,49 @@ impl Repl {
                 )
                 .map_err(|e| format!("error: {e}\n"))?;
                 println!("wrote {}", file.trim());
+            }
+            "qscan" if rest.contains("--gps") => {
+                let words = std::iter::once("qscan").chain(rest.split_whitespace());
+                let args =
+                    QscanCommand::try_parse_from(words).map_err(|e| format!("error: {}\n", e.to_string().trim_start_matches("error: ")))?;
+                crate::qscan::qscan(args.args).map_err(|e| format!("{e}\n"))?;
+            }
+            "qscan" => {
+                let (expr, file) = match rest.rsplit_once(" to ") {
+                    Some((e, f)) => (e, Some(std::path::Path::new(f.trim()))),
+                    None => (rest, None),
+                };
+                let scene = self.scene(&format!("    output {VALUE} =\n{expr}"))?;
+                let out = scene.bind().forward().map_err(|e| self.render(e))?;
+                let f = scene.ir();
+                let o = &f.outputs[0];
+                let (Value::RealArray(x), gwml::compiler::ir::Shape::Grid(g)) =
+                    (out.value(VALUE).map_err(|e| self.render(e))?, f.ty(o.value).shape)
+                else {
+                    return Err("error: :qscan needs a real array over a time grid\n".into());
+                };
+                let grid = f.grid(g);
+                if grid.unit != "s" {
+                    return Err(format!("error: :qscan needs an array over a time grid; `{}` is in {}\n", grid.name, grid.unit));
+                }
+                let image = crate::qscan::q_image_of(x, 1.0 / grid.step, grid.start).map_err(|e| format!("{e}\n"))?;
+                let p = image.peak;
+                println!(
+                    "Q {:.1}: loudest tile at {:.4} s, {:.1} Hz, normalised energy {:.4e} (tiles from {:.0} to {:.0} Hz)",
+                    image.q,
+                    p.time,
+                    p.frequency,
+                    p.energy,
+                    image.frequencies[0],
+                    image.frequencies[image.frequencies.len() - 1]
+                );
+                if p.energy > 1e6 {
+                    println!("  (tile energies are normalised by each row's median, which noiseless data make tiny: add noise for a meaningful scale)");
+                }
+                if let Some(path) = file {
+                    crate::qscan::plot_q_images(path, expr.trim(), 0.0, &[("Q-transform".to_string(), &image)])?;
+                    println!("wrote {}", path.display());
+                }
             }
             "precision" => {
                 let precision: Precision = rest.parse().map_err(|e: UnknownSetting| format!("error: {e}; use {}\n", e.help))?;

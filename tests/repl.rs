@@ -18,6 +18,40 @@ fn piped(input: &str) -> (bool, String) {
     (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
+/// `:qscan EXPR`: the loudest tile of a sine-Gaussian at 1 s, 200 Hz, Q 9 is
+/// found where it is; arrays over other grids, scalars and bad strain
+/// arguments are errors that keep the session.
+#[test]
+fn qscan_of_an_expression_and_of_a_strain_file() {
+    let png = std::env::temp_dir().join(format!("gwml-repl-qscan-{}.png", std::process::id()));
+    let (ok, out) = piped(&format!(
+        "grid t = times(rate: 4096 Hz, duration: 2 s)
+let x = exp(-((t - 1 s) / 7 ms)^2) * sin(2.0 * pi * 200 Hz * (t - 1 s))
+:qscan x to {}
+:qscan 3.0
+grid f = frequencies(from: 20 Hz, to: 512 Hz, step: 0.25 Hz)
+:qscan f
+:qscan missing.hdf5 --gps 1264000000
+:qscan missing.hdf5 --gpss 3
+",
+        png.display()
+    ));
+    assert!(!ok, "the failed lines set the exit status");
+    let line = out.lines().find(|l| l.starts_with("Q ")).unwrap_or_else(|| panic!("a Q-scan line: {out}"));
+    let number_after = |key: &str| -> f64 {
+        let rest = &line[line.find(key).unwrap_or_else(|| panic!("`{key}` in {line}")) + key.len()..];
+        rest.trim_start().split([' ', ',']).next().unwrap().parse().unwrap()
+    };
+    let (time, freq) = (number_after("loudest tile at"), number_after("s,"));
+    assert!((time - 1.0).abs() < 0.01, "peak time {time} s: {line}");
+    assert!((freq - 200.0).abs() < 0.1 * 200.0, "peak frequency {freq} Hz: {line}");
+    assert_eq!(&std::fs::read(&png).expect("Q-scan written")[1..4], b"PNG");
+    assert!(out.contains(":qscan needs a real array over a time grid"), "{out}");
+    assert!(out.contains("`f` is in Hz"), "{out}");
+    assert!(out.contains("missing.hdf5"), "the strain form reads the file as gwml qscan does: {out}");
+    assert!(out.contains("unexpected argument '--gpss'"), "{out}");
+}
+
 #[test]
 fn transcript_definitions_values_and_gradients() {
     let (ok, out) = piped(

@@ -479,7 +479,7 @@ fn excess_centroid(energies: &[f64], dt: f64, from: f64, to: f64) -> Option<f64>
 
 /// A chunk length's compiled whitening scene and tiling.
 struct Prepared {
-    whiten: Scene,
+    whiten: std::sync::Arc<Scene>,
     tiling: QTiling,
     fft: std::sync::Arc<dyn realfft::RealToComplex<f64>>,
 }

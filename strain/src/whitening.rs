@@ -8,14 +8,20 @@ use crate::series::Series;
 use crate::Error;
 use gwml_compiler::Options;
 use gwml_runtime::{Model, Scene, Value};
+use std::sync::{Arc, Mutex};
 
 /// The whitening scene.
 const WHITEN_SOURCE: &str = include_str!("../models/whiten.gw");
 
-/// The whitening scene, parsed and checked once; compiled per length.
+/// The whitening scene, parsed and checked once; compiled once per length,
+/// sample rate and options, and kept.
 pub struct Whitener {
     model: Model,
+    compiled: Mutex<Vec<(SceneKey, Arc<Scene>)>>,
 }
+
+/// What a compiled whitening scene depends on.
+type SceneKey = (usize, u64, [u64; 5]);
 
 /// How a stretch is whitened.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -32,13 +38,24 @@ impl Whitener {
     /// Parses and checks `whiten.gw`.
     pub fn new() -> Result<Whitener, Error> {
         let model = Model::from_source("whiten.gw", WHITEN_SOURCE).map_err(|e| Error::Data(e.render(false)))?;
-        Ok(Whitener { model })
+        Ok(Whitener { model, compiled: Mutex::new(Vec::new()) })
     }
 
     /// The scene compiled for `n` samples at `sample_rate`: inputs `x` (the
     /// strain) and `psd` (on the `n / 2 + 1` bins of the chunk's spectrum),
-    /// outputs `w` and `w_clf`.
-    pub fn scene(&self, n: usize, sample_rate: f64, o: &WhitenOptions) -> Result<Scene, Error> {
+    /// outputs `w` and `w_clf`. Compiled on the first call with these
+    /// arguments, shared after.
+    pub fn scene(&self, n: usize, sample_rate: f64, o: &WhitenOptions) -> Result<Arc<Scene>, Error> {
+        let key = (n, sample_rate.to_bits(), [o.taper, o.band.0, o.band.1, o.classifier_band.0, o.classifier_band.1].map(f64::to_bits));
+        if let Some((_, scene)) = self.compiled.lock().expect("no thread panics holding it").iter().find(|(k, _)| *k == key) {
+            return Ok(scene.clone());
+        }
+        let scene = Arc::new(self.compile(n, sample_rate, o)?);
+        self.compiled.lock().expect("no thread panics holding it").push((key, scene.clone()));
+        Ok(scene)
+    }
+
+    fn compile(&self, n: usize, sample_rate: f64, o: &WhitenOptions) -> Result<Scene, Error> {
         let duration = n as f64 / sample_rate;
         let knobs = [
             ("rate", format!("{sample_rate:?} Hz")),
