@@ -434,3 +434,24 @@ fn unknown_precision_and_math_settings_name_the_valid_spellings() {
     let spans: Vec<&str> = err.diagnostics.iter().map(|d| &err.sources.get(d.span.file).text[d.span.start..d.span.end]).collect();
     assert_eq!(spans, ["f16", "quick"]);
 }
+
+#[test]
+fn transposed_convolution_upsampling_reshape_and_noise_misuse() {
+    let err = fail(&learned_scene(
+        "  weight k: [1, 2, 3] = he\n  weight k2: [3, 1, 2] = he\n  \
+         let a = conv_transpose1d(x, k, stride: 2, output_padding: 2)\n  \
+         let b = conv_transpose1d(x, k, padding: 40)\n  \
+         let c = conv_transpose1d(conv_transpose1d(x, k), k2)\n  \
+         let d = reshape(x, 7)\n  \
+         let e = randn(2.5)\n  \
+         let f = upsample(x, 0)\n  \
+         sum(a) + sum(b) + sum(c) + sum(d) + sum(e) + sum(f)",
+    ));
+    assert_reports(&err, "`output_padding` (2) must be smaller than the stride or the dilation");
+    assert_reports(&err, "the output would have -62 positions: the padding (40) is too large");
+    assert_reports(&err, "the weight of `conv_transpose1d` has shape [3, 1, 2], but the layer needs [2, 1, 2]");
+    assert_reports(&err, "the second argument of `reshape` must be the name of a grid");
+    assert_reports(&err, "the number of values of `randn` must be a whole number ≥ 1");
+    assert_reports(&err, "an upsampling factor must be a whole number ≥ 1");
+    insta::assert_snapshot!(err.render(false));
+}

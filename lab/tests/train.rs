@@ -145,3 +145,34 @@ fn dropout_masks_apply_while_training_and_not_in_evaluation() {
     let eval = trainer.evaluate(&data).unwrap();
     assert_eq!(eval.loss, w.iter().sum::<f64>());
 }
+
+#[test]
+fn randn_draws_standard_normal_noise_while_training_and_zeros_in_evaluation() {
+    // loss = Σ randn(400) · w · x with x = 1: one SGD step of rate 1 from
+    // w = 0 on one example moves the weights to minus the draws, which must
+    // look standard normal; evaluation binds no noise, so its loss is 0.
+    let src = "learned net(x) {\n    weight w: [400] = zeros\n    sum(randn(400) * w * x)\n}\n\
+               scene s {\n  grid g = index(400)\n  input x: real[g] = 0.0\n  output loss = net(x)\n  grad loss wrt net\n}\n";
+    let model = Model::from_source("noise.gw", src).unwrap();
+    let scene = model.scene(None).unwrap();
+    assert_eq!(scene.ir().inputs.iter().find(|i| i.name == "net.noise1").unwrap().role, gwml_compiler::ir::InputRole::Noise);
+    let data = {
+        let mut arrays = std::collections::BTreeMap::new();
+        arrays.insert("x".to_string(), gwml_runtime::dataset::Array::new(vec![1, 400], vec![1.0; 400]).unwrap());
+        gwml_runtime::dataset::Dataset { arrays }
+    };
+    let sgd = OptimConfig { method: Method::sgd(0.0), lr: 1.0, schedule: Schedule::Constant, clip_norm: None };
+    let mut trainer = Trainer::new(&scene, TrainOptions { batch: 1, threads: 1, optim: sgd, ..options(1, 1.0) }).unwrap();
+    trainer.fit(&data, None, |_, _| {}, |_| {}).unwrap();
+    let first = trainer.weights()[0].1.clone();
+    let mean = first.iter().sum::<f64>() / 400.0;
+    let sd = (first.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / 399.0).sqrt();
+    assert!(mean.abs() < 0.2 && (0.85..1.15).contains(&sd), "draws: mean {mean}, sd {sd}");
+    assert_eq!(trainer.evaluate(&data).unwrap().loss, 0.0, "evaluation binds no noise");
+    // The next epoch draws again.
+    let mut second = Trainer::new(&scene, TrainOptions { batch: 1, threads: 1, optim: sgd, ..options(2, 1.0) }).unwrap();
+    second.fit(&data, None, |_, _| {}, |_| {}).unwrap();
+    let step2: Vec<f64> = second.weights()[0].1.iter().zip(&first).map(|(a, b)| a - b).collect();
+    let corr = step2.iter().zip(&first).map(|(a, b)| a * b).sum::<f64>() / 400.0;
+    assert!(step2.iter().any(|v| v.abs() > 0.1) && corr.abs() < 0.2, "fresh draws each epoch (correlation {corr})");
+}

@@ -92,8 +92,9 @@ pub struct Trainer<'s> {
     opts: TrainOptions,
     slots: Vec<Slot>,
     values: Vec<f64>,
-    /// Dropout masks: (input name, rate, elements).
-    masks: Vec<(String, f64, usize)>,
+    /// Inputs drawn afresh per example and step (dropout masks and
+    /// `randn` noise): (input name, role, elements).
+    draws: Vec<(String, InputRole, usize)>,
     optim: Optimizer,
     epoch: usize,
     best_val: f64,
@@ -137,20 +138,18 @@ impl<'s> Trainer<'s> {
         if opts.batch == 0 || opts.threads == 0 {
             return Err(Error::Bind("the batch size and the thread count must be at least 1".into()));
         }
-        let masks = func
+        let draws = func
             .inputs
             .iter()
-            .filter_map(|i| match i.role {
-                InputRole::DropoutMask(rate) => Some((i.name.clone(), rate, func.len_of(i.ty.shape))),
-                _ => None,
-            })
+            .filter(|i| matches!(i.role, InputRole::DropoutMask(_) | InputRole::Noise))
+            .map(|i| (i.name.clone(), i.role, func.len_of(i.ty.shape)))
             .collect();
         let optim = Optimizer::new(opts.optim, values.len())?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(opts.threads)
             .build()
             .map_err(|e| Error::Bind(format!("cannot start {} training threads: {e}", opts.threads)))?;
-        Ok(Trainer { scene, opts, slots, values, masks, optim, epoch: 0, best_val: f64::INFINITY, bad_epochs: 0, pool })
+        Ok(Trainer { scene, opts, slots, values, draws, optim, epoch: 0, best_val: f64::INFINITY, bad_epochs: 0, pool })
     }
 
     /// Epochs completed so far.
@@ -325,7 +324,7 @@ impl<'s> Trainer<'s> {
         for &i in chunk {
             ex.bind(&mut run, i)?;
             if grad {
-                self.bind_dropout_masks(&mut run, i)?;
+                self.bind_draws(&mut run, i)?;
             }
             let out = if grad { run.value_and_grad()? } else { run.forward()? };
             part.loss_sum += out.scalar(&self.opts.loss)?;
@@ -340,19 +339,25 @@ impl<'s> Trainer<'s> {
         Ok(part)
     }
 
-    /// Fresh dropout masks for example `i` of this epoch, from a generator
-    /// seeded by (seed, epoch, example), so resumed runs draw the same masks.
-    fn bind_dropout_masks(&self, run: &mut Run<'_>, i: usize) -> Result<(), Error> {
-        if self.masks.is_empty() {
+    /// Fresh dropout masks and `randn` noise for example `i` of this epoch,
+    /// from a generator seeded by (seed, epoch, example), so resumed runs
+    /// draw the same values.
+    fn bind_draws(&self, run: &mut Run<'_>, i: usize) -> Result<(), Error> {
+        if self.draws.is_empty() {
             return Ok(());
         }
         let seed =
             self.opts.seed ^ (self.epoch as u64).wrapping_mul(0xD1B5_4A32_D192_ED03) ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
-        for (name, rate, len) in &self.masks {
-            let keep = 1.0 / (1.0 - rate);
-            let mask: Vec<f64> = (0..*len).map(|_| if rng.random_bool(*rate) { 0.0 } else { keep }).collect();
-            run.input_real(name, &mask)?;
+        for (name, role, len) in &self.draws {
+            let values: Vec<f64> = match *role {
+                InputRole::DropoutMask(rate) => {
+                    let keep = 1.0 / (1.0 - rate);
+                    (0..*len).map(|_| if rng.random_bool(rate) { 0.0 } else { keep }).collect()
+                }
+                _ => (0..*len).map(|_| rng.sample::<f64, _>(rand_distr::StandardNormal)).collect(),
+            };
+            run.input_real(name, &values)?;
         }
         Ok(())
     }

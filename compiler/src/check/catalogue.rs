@@ -63,6 +63,13 @@ pub const BUILTINS: &[(&str, &str)] = &[
         "conv1d",
         "conv1d(x, w, b, stride: 1, padding: 0, dilation: 1): convolution of x [c_in, n] (or a time series) with w [c_out, c_in, k], optional bias b [c_out]",
     ),
+    (
+        "conv_transpose1d",
+        "conv_transpose1d(x, w, b, stride: 1, padding: 0, output_padding: 0, dilation: 1): the transpose of conv1d in its input, PyTorch's layout: x [c_in, n], w [c_in, c_out, k], output [c_out, (n-1)·stride - 2·padding + dilation·(k-1) + output_padding + 1]",
+    ),
+    ("upsample", "upsample(x, factor): each position of x [channels, n] repeated factor times, [channels, n·factor]"),
+    ("randn", "randn(n) or randn(g): standard normal noise, n values or one per point of grid g; zeros unless training or sampling draws it"),
+    ("reshape", "reshape(x, g): the values of x in order as an array over grid g (which has as many points)"),
     ("max_pool", "max_pool(x, window, stride: window): the largest value of each window of x [channels, n]"),
     ("avg_pool", "avg_pool(x, window, stride: window): the mean of each window of x [channels, n]"),
     ("global_avg_pool", "global_avg_pool(x): the mean over positions of x [channels, n], one value per channel"),

@@ -12,13 +12,14 @@ use crate::front::source::{Span, Spanned};
 use crate::front::syntax::ast::{self, Expr, ExprKind, ModuleDef, WeightDecl};
 use crate::front::units::Dim;
 use crate::ir::builder::Builder;
-use crate::ir::{self, Conv, Elem, GridId, InputRole, Op, Pool, Rows, Shape, TensorOp, Ty};
+use crate::ir::{self, Conv, Elem, GridId, InputRole, Op, Pool, Rows, Shape, TensorOp, Ty, Value};
 use num_complex::Complex64 as C64;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};
 
 /// The layer builtins (their usage lines are in `BUILTINS`).
-pub const LAYERS: &[&str] = &["dense", "conv1d", "max_pool", "avg_pool", "global_avg_pool", "dropout", "stack"];
+pub const LAYERS: &[&str] =
+    &["dense", "conv1d", "conv_transpose1d", "upsample", "max_pool", "avg_pool", "global_avg_pool", "dropout", "randn", "reshape", "stack"];
 
 /// Initialisers a `weight` may use.
 const INITIALISERS: &[&str] = &["zeros", "ones", "normal", "uniform", "glorot", "he"];
@@ -233,6 +234,7 @@ impl<'a> Checker<'a> {
         let (named, positional): (Vec<&'a ast::Arg>, Vec<&'a ast::Arg>) = args.iter().partition(|a| a.name.is_some());
         let allowed: &[&str] = match name {
             "conv1d" => &["stride", "padding", "dilation"],
+            "conv_transpose1d" => &["stride", "padding", "output_padding", "dilation"],
             "max_pool" | "avg_pool" => &["window", "stride"],
             _ => &[],
         };
@@ -248,7 +250,7 @@ impl<'a> Checker<'a> {
                 });
                 return None;
             }
-            let min = if n.node == "padding" { 0 } else { 1 };
+            let min = if n.node == "padding" || n.node == "output_padding" { 0 } else { 1 };
             opts.push((
                 allowed.iter().find(|x| **x == n.node).expect("checked above"),
                 self.const_count(&a.value, &format!("`{}`", n.node), min)?,
@@ -256,7 +258,8 @@ impl<'a> Checker<'a> {
         }
         let opt = |k: &str| opts.iter().find(|(n, _)| *n == k).map(|(_, v)| *v);
         let (lo, hi) = match name {
-            "dense" | "conv1d" => (2, 3),
+            "dense" | "conv1d" | "conv_transpose1d" => (2, 3),
+            "upsample" | "reshape" => (2, 2),
             "max_pool" | "avg_pool" => (if opt("window").is_some() { 1 } else { 2 }, 2),
             "dropout" => (2, 2),
             "stack" => (1, usize::MAX),
@@ -281,8 +284,14 @@ impl<'a> Checker<'a> {
             );
             return None;
         }
-        let window_arg =
-            if matches!(name, "max_pool" | "avg_pool" | "dropout") && positional.len() == 2 { positional.get(1).copied() } else { None };
+        if name == "randn" {
+            return self.randn(b, scope, positional[0]);
+        }
+        let window_arg = if matches!(name, "max_pool" | "avg_pool" | "dropout" | "upsample" | "reshape") && positional.len() == 2 {
+            positional.get(1).copied()
+        } else {
+            None
+        };
         let array_args = if window_arg.is_some() { &positional[..1] } else { &positional[..] };
         let mut vals = Vec::new();
         for a in array_args {
@@ -296,6 +305,16 @@ impl<'a> Checker<'a> {
                 let conv = (opt("stride").unwrap_or(1), opt("padding").unwrap_or(0), opt("dilation").unwrap_or(1));
                 self.conv1d(b, x, vals[1], vals.get(2).copied(), conv)
             }
+            "conv_transpose1d" => {
+                let o = |k| opt(k).unwrap_or(if k == "stride" || k == "dilation" { 1 } else { 0 });
+                let conv = (o("stride"), o("padding"), o("output_padding"), o("dilation"));
+                self.conv_transpose1d(b, x, vals[1], vals.get(2).copied(), conv, at)
+            }
+            "upsample" => {
+                let factor = self.const_count(&window_arg.expect("upsample takes two arguments").value, "an upsampling factor", 1)?;
+                self.upsample(b, x, factor)
+            }
+            "reshape" => self.reshape(b, scope, x, window_arg.expect("reshape takes two arguments")),
             "stack" => self.stack(b, &vals),
             "dropout" => {
                 let rate_arg = window_arg.expect("dropout takes two arguments");
@@ -412,14 +431,112 @@ impl<'a> Checker<'a> {
         let conv = Conv { c_in, c_out, len_in, len_out, kernel, stride, padding, dilation };
         let grid = Self::tensor_grid(b, &[c_out as usize, len_out as usize]);
         let y = b.emit(Op::Tensor(TensorOp::Conv(conv), grid, x.0.v, w.0.v));
-        let v = match bias {
+        Some(Tv { v: self.add_channel_bias(b, y, bias, (c_out, len_out), grid), dim: Dim::NONE })
+    }
+
+    /// `y + bias` with one bias per channel of `y` `[channels, positions]`.
+    fn add_channel_bias(&self, b: &mut Builder, y: Value, bias: Option<(Tv, Span)>, (rows, cols): (u32, u32), grid: GridId) -> Value {
+        match bias {
             Some(bias) => {
-                let spread = b.emit(Op::Tensor(TensorOp::Spread { rows: c_out, cols: len_out }, grid, bias.0.v, bias.0.v));
+                let spread = b.emit(Op::Tensor(TensorOp::Spread { rows, cols }, grid, bias.0.v, bias.0.v));
                 b.add(y, spread)
             }
             None => y,
+        }
+    }
+
+    /// `conv_transpose1d(x, w, b)`: the transpose of `conv1d` in its input,
+    /// with PyTorch's layout: x `[c_in, n]`, w `[c_in, c_out, k]`, output
+    /// `[c_out, (n − 1)·stride − 2·padding + dilation·(k − 1) + output_padding + 1]`.
+    /// Lowers to `ConvBackData` of the convolution it transposes.
+    fn conv_transpose1d(
+        &mut self,
+        b: &mut Builder,
+        x: (Tv, Span),
+        w: (Tv, Span),
+        bias: Option<(Tv, Span)>,
+        (stride, padding, output_padding, dilation): (u32, u32, u32, u32),
+        at: Span,
+    ) -> Option<Tv> {
+        let (c_in, len_in) = channels(b, x.0);
+        let wd = dims_of(b, w.0);
+        if wd.len() != 3 || wd[0] != c_in as usize {
+            let c_out = wd.get(1).copied().unwrap_or(1);
+            let k = wd.get(2).copied().unwrap_or(1);
+            self.expect_dims(b, w, &[c_in as usize, c_out, k], "the weight", "conv_transpose1d")?;
+        }
+        let (c_out, kernel) = (wd[1] as u32, wd[2] as u32);
+        if let Some(bias) = bias {
+            self.expect_dims(b, bias, &[c_out as usize], "the bias", "conv_transpose1d")?;
+        }
+        if output_padding >= stride.max(dilation) {
+            self.error(
+                Diagnostic::error(at, format!("`output_padding` ({output_padding}) must be smaller than the stride or the dilation"))
+                    .with_help("it only picks among the output lengths a strided convolution maps to the same input length"),
+            );
+            return None;
+        }
+        let full = (len_in as i64 - 1) * stride as i64 + dilation as i64 * (kernel as i64 - 1) + output_padding as i64 + 1;
+        let len_out = full - 2 * padding as i64;
+        if !(1..1 << 31).contains(&len_out) {
+            self.error(
+                Diagnostic::error(at, format!("the output would have {len_out} positions: the padding ({padding}) is too large"))
+                    .with_help("use less padding, a longer kernel or a larger stride"),
+            );
+            return None;
+        }
+        let len_out = len_out as u32;
+        // The convolution this op transposes maps `len_out` positions of
+        // `c_out` channels to the `len_in` positions of `x`'s `c_in`.
+        let conv = Conv { c_in: c_out, c_out: c_in, len_in: len_out, len_out: len_in, kernel, stride, padding, dilation };
+        let grid = Self::tensor_grid(b, &[c_out as usize, len_out as usize]);
+        let y = b.emit(Op::Tensor(TensorOp::ConvBackData(conv), grid, x.0.v, w.0.v));
+        Some(Tv { v: self.add_channel_bias(b, y, bias, (c_out, len_out), grid), dim: Dim::NONE })
+    }
+
+    /// `upsample(x, factor)`: each position of x `[c, n]` repeated `factor`
+    /// times, `[c, n·factor]` (nearest neighbour); the transpose of a mean
+    /// over windows of `factor`, times `factor`.
+    fn upsample(&mut self, b: &mut Builder, x: (Tv, Span), factor: u32) -> Option<Tv> {
+        let (channels, n) = channels(b, x.0);
+        let Some(len) = n.checked_mul(factor).filter(|l| *l < 1 << 31) else {
+            self.error(Diagnostic::error(x.1, format!("upsampling {n} positions by {factor} is too long")));
+            return None;
         };
-        Some(Tv { v, dim: Dim::NONE })
+        let p = Pool { channels, len_in: len, len_out: n, window: factor, stride: factor };
+        let grid = Self::tensor_grid(b, &[channels as usize, len as usize]);
+        let spread = b.emit(Op::Tensor(TensorOp::PoolAvgBack(p), grid, x.0.v, x.0.v));
+        Some(Tv { v: b.scale(spread, factor as f64), dim: Dim::NONE })
+    }
+
+    /// `reshape(x, g)`: the elements of x, in order, as an array over grid
+    /// `g` (a time grid, say), which must have as many points.
+    fn reshape(&mut self, b: &mut Builder, scope: &mut Scope<'a>, x: (Tv, Span), grid: &'a ast::Arg) -> Option<Tv> {
+        let target = self.expr(b, scope, &grid.value)?;
+        let Op::GridCoord(g) = b.func.insts[target.v.index()].op else {
+            self.error(
+                Diagnostic::error(grid.value.span, "the second argument of `reshape` must be the name of a grid")
+                    .with_help("e.g. `reshape(y, t)` puts the 4096 values of y on time grid t"),
+            );
+            return None;
+        };
+        let (n, want) = (b.func.len_of(b.ty(x.0.v).shape), b.func.grids[g.0 as usize].len);
+        if n != want {
+            self.error(
+                Diagnostic::error(
+                    x.1,
+                    format!(
+                        "`reshape` needs as many values as grid `{}` has points ({want}), but this has {n}",
+                        b.func.grids[g.0 as usize].name
+                    ),
+                )
+                .with_label(format!("{n} values"))
+                .with_help("the grid and the array must hold the same number of elements"),
+            );
+            return None;
+        }
+        let rows = Rows { rows: 1, cols: n as u32, from: 0, count: 1 };
+        Some(Tv { v: b.emit(Op::Tensor(TensorOp::TakeRows(rows), g, x.0.v, x.0.v)), dim: Dim::NONE })
     }
 
     /// `stack(a, b, ...)`: the channels of each argument one after the
@@ -478,6 +595,44 @@ impl<'a> Checker<'a> {
         });
         let mask = b.push(Op::Input(b.func.inputs.len() as u32 - 1));
         Some(Tv { v: b.mul(x.0.v, mask), dim: Dim::NONE })
+    }
+
+    /// `randn(n)` or `randn(g)`: standard normal noise, `n` values (a
+    /// tensor `[n]`) or one per point of grid `g`, as an input (see
+    /// [`InputRole::Noise`]): zeros unless a trainer or sampler binds a
+    /// fresh draw. The reparameterisation trick of a variational
+    /// autoencoder: `mu + exp(0.5 * logvar) * randn(8)`.
+    fn randn(&mut self, b: &mut Builder, scope: &mut Scope<'a>, arg: &'a ast::Arg) -> Option<Tv> {
+        let named_grid = match &arg.value.node {
+            ExprKind::Name(_) => {
+                let v = self.expr(b, scope, &arg.value)?.v;
+                match b.func.insts[v.index()].op {
+                    Op::GridCoord(g) => Some(g),
+                    _ => None,
+                }
+            }
+            _ => None,
+        };
+        let grid = match named_grid {
+            Some(g) => g,
+            None => {
+                let n = self.const_count(&arg.value, "the number of values of `randn`", 1)?;
+                Self::tensor_grid(b, &[n as usize])
+            }
+        };
+        let owner = self.call_stack.last().map(|(n, _)| format!("{n}.")).unwrap_or_default();
+        let k = b.func.inputs.iter().filter(|i| i.role == InputRole::Noise).count() + 1;
+        let ty = Ty { elem: Elem::Real, shape: Shape::Grid(grid) };
+        let len = b.func.len_of(ty.shape);
+        b.func.inputs.push(ir::InputInfo {
+            name: format!("{owner}noise{k}"),
+            ty,
+            scale: 1.0,
+            unit: String::new(),
+            default: Some(vec![C64::new(0.0, 0.0); len]),
+            role: InputRole::Noise,
+        });
+        Some(Tv { v: b.push(Op::Input(b.func.inputs.len() as u32 - 1)), dim: Dim::NONE })
     }
 
     fn pool(&mut self, b: &mut Builder, x: (Tv, Span), window: u32, stride: u32, max: bool) -> Option<Tv> {

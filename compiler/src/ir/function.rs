@@ -75,6 +75,10 @@ pub enum InputRole {
     /// a trainer binds a fresh mask per example, each element 0 with
     /// probability `rate` and 1/(1 − rate) otherwise.
     DropoutMask(f64),
+    /// The draws of a `randn(...)`: zeros by default (the mean); a trainer
+    /// binds fresh standard normal values per example and step, a sampler
+    /// per draw.
+    Noise,
 }
 
 /// A real array over a grid computed at compile time.
