@@ -25,6 +25,8 @@ fn fit_a_blip_generator_and_sample_from_it() {
         "fit",
         "--family",
         "blip",
+        "--kind",
+        "parametric",
         "--examples",
         &p("blips.npz"),
         "--out",
@@ -72,16 +74,66 @@ fn fit_a_blip_generator_and_sample_from_it() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The learned generator (the default kind) trains on the examples, writes
+/// its JSON and weights and a plot, and draws rows whose `snr` is their
+/// norm and whose `t0` is where their energy is centred.
+#[test]
+fn fit_a_learned_generator_and_sample_from_it() {
+    let dir = std::env::temp_dir().join(format!("gwml-generator-learned-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |name: &str| dir.join(name).display().to_string();
+    let (ok, out, err) = gwml(&[
+        "generator",
+        "fit",
+        "--family",
+        "blip",
+        "--n",
+        "48",
+        "--snr",
+        "20..30",
+        "--epochs",
+        "20",
+        "--out",
+        &p("vae.json"),
+        "--plot",
+        &p("fit.png"),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("trained a Blip generator on 48 examples") && out.contains("vae.safetensors"), "{out}");
+    assert!(std::fs::metadata(p("fit.png")).unwrap().len() > 10_000);
+    let (ok, out, err) = gwml(&["generator", "sample", "--model", &p("vae.json"), "--n", "4", "--seed", "2", "--out", &p("draws.npz")]);
+    assert!(ok, "{err}");
+    assert!(out.contains("the drawn t0, snr"), "{out}");
+    let ds = Dataset::read(Path::new(&p("draws.npz"))).unwrap();
+    assert_eq!(ds.arrays["x"].shape, vec![4, 4096]);
+    for i in 0..4 {
+        let row = ds.arrays["x"].row(i);
+        assert!(row.iter().all(|v| v.is_finite()));
+        let norm = row.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!((norm / ds.arrays["snr"].data[i] - 1.0).abs() < 1e-9);
+        assert!(norm > 0.0, "a draw is not silent");
+    }
+    let (ok, out2, _) = gwml(&["generator", "sample", "--model", &p("vae.json"), "--n", "4", "--seed", "2", "--out", &p("again.npz")]);
+    assert!(ok, "{out2}");
+    assert_eq!(Dataset::read(Path::new(&p("again.npz"))).unwrap().arrays["x"].data, ds.arrays["x"].data, "the same seed draws the same");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn bad_generator_inputs_are_clear_errors() {
     let dir = std::env::temp_dir().join(format!("gwml-generator-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let p = |name: &str| dir.join(name).display().to_string();
-    let (ok, _, err) = gwml(&["generator", "fit", "--family", "chirp", "--out", &p("g.json")]);
+    let (ok, _, err) = gwml(&["generator", "fit", "--family", "chirp", "--kind", "parametric", "--out", &p("g.json")]);
     assert!(!ok && err.contains("Chirp is not one"), "{err}");
     std::fs::write(p("bad.json"), "{\"family\": \"blip\"}").unwrap();
     let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("bad.json"), "--out", &p("d.npz")]);
     assert!(!ok && err.contains("not a gwml generator file"), "{err}");
+    std::fs::write(p("learned.json"), "{\"kind\": \"learned\", \"class\": 1, \"centres\": [0.5], \"weights\": \"gone.safetensors\"}")
+        .unwrap();
+    let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("learned.json"), "--out", &p("d.npz")]);
+    assert!(!ok && err.contains("gone.safetensors"), "a missing weights file is named: {err}");
     let (ok, _, err) = gwml(&["data", "bursts", "--class", "blip", "--out", &p("b.npz")]);
     assert!(!ok && err.contains("--class applies to glitch data only"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);

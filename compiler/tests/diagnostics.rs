@@ -450,7 +450,7 @@ fn transposed_convolution_upsampling_reshape_and_noise_misuse() {
     assert_reports(&err, "`output_padding` (2) must be smaller than the stride or the dilation");
     assert_reports(&err, "the output would have -62 positions: the padding (40) is too large");
     assert_reports(&err, "the weight of `conv_transpose1d` has shape [3, 1, 2], but the layer needs [2, 1, 2]");
-    assert_reports(&err, "the second argument of `reshape` must be the name of a grid");
+    assert_reports(&err, "`reshape` needs as many values as shape [7] holds (7), but this has 16");
     assert_reports(&err, "the number of values of `randn` must be a whole number ≥ 1");
     assert_reports(&err, "an upsampling factor must be a whole number ≥ 1");
     insta::assert_snapshot!(err.render(false));

@@ -388,7 +388,7 @@ fn upsampling_and_reshaping_have_correct_values_and_gradients() {
         assert!((a - b).abs() < 1e-15, "{y:?} vs {want:?}");
     }
     let src = "learned net(x) {\n    weight k: [2, 1, 3] = he(seed: 1)\n    weight w: [4, 2, 3] = glorot(seed: 2)\n    \
-               let h = upsample(tanh(conv1d(x, k, padding: 1)), 3)\n    \
+               let h = upsample(reshape(tanh(conv1d(x, k, padding: 1)), 2, 5), 3)\n    \
                let y = reshape(conv1d(h, w, padding: 1, stride: 3), t2)\n    sum(y * y * ramp)\n}\n\
                scene s {\n  grid t = times(rate: 5 Hz, duration: 1 s)\n  grid t2 = times(rate: 20 Hz, duration: 1 s)\n  \
                input x: real[t] = 0.0\n  input ramp: real[t2] = 0.0\n  output out = net(x)\n  grad out wrt net\n}\n";

@@ -18,8 +18,20 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};
 
 /// The layer builtins (their usage lines are in `BUILTINS`).
-pub const LAYERS: &[&str] =
-    &["dense", "conv1d", "conv_transpose1d", "upsample", "max_pool", "avg_pool", "global_avg_pool", "dropout", "randn", "reshape", "stack"];
+pub const LAYERS: &[&str] = &[
+    "dense",
+    "conv1d",
+    "conv_transpose1d",
+    "upsample",
+    "max_pool",
+    "avg_pool",
+    "global_avg_pool",
+    "dropout",
+    "randn",
+    "reshape",
+    "slice",
+    "stack",
+];
 
 /// Initialisers a `weight` may use.
 const INITIALISERS: &[&str] = &["zeros", "ones", "normal", "uniform", "glorot", "he"];
@@ -259,7 +271,9 @@ impl<'a> Checker<'a> {
         let opt = |k: &str| opts.iter().find(|(n, _)| *n == k).map(|(_, v)| *v);
         let (lo, hi) = match name {
             "dense" | "conv1d" | "conv_transpose1d" => (2, 3),
-            "upsample" | "reshape" => (2, 2),
+            "upsample" => (2, 2),
+            "reshape" => (2, 4),
+            "slice" => (3, 3),
             "max_pool" | "avg_pool" => (if opt("window").is_some() { 1 } else { 2 }, 2),
             "dropout" => (2, 2),
             "stack" => (1, usize::MAX),
@@ -287,12 +301,17 @@ impl<'a> Checker<'a> {
         if name == "randn" {
             return self.randn(b, scope, positional[0]);
         }
-        let window_arg = if matches!(name, "max_pool" | "avg_pool" | "dropout" | "upsample" | "reshape") && positional.len() == 2 {
+        if name == "reshape" {
+            let tv = self.expr(b, scope, &positional[0].value)?;
+            let x = self.layer_operand(b, (tv, positional[0].value.span), name)?;
+            return self.reshape(b, scope, x, &positional[1..]);
+        }
+        let window_arg = if matches!(name, "max_pool" | "avg_pool" | "dropout" | "upsample") && positional.len() == 2 {
             positional.get(1).copied()
         } else {
             None
         };
-        let array_args = if window_arg.is_some() { &positional[..1] } else { &positional[..] };
+        let array_args = if window_arg.is_some() || name == "slice" { &positional[..1] } else { &positional[..] };
         let mut vals = Vec::new();
         for a in array_args {
             let tv = self.expr(b, scope, &a.value)?;
@@ -314,8 +333,12 @@ impl<'a> Checker<'a> {
                 let factor = self.const_count(&window_arg.expect("upsample takes two arguments").value, "an upsampling factor", 1)?;
                 self.upsample(b, x, factor)
             }
-            "reshape" => self.reshape(b, scope, x, window_arg.expect("reshape takes two arguments")),
             "stack" => self.stack(b, &vals),
+            "slice" => {
+                let from = self.const_count(&positional[1].value, "the first channel of `slice`", 0)?;
+                let count = self.const_count(&positional[2].value, "the channel count of `slice`", 1)?;
+                self.slice(b, x, from, count, at)
+            }
             "dropout" => {
                 let rate_arg = window_arg.expect("dropout takes two arguments");
                 self.dropout(b, x, rate_arg)
@@ -510,33 +533,65 @@ impl<'a> Checker<'a> {
     }
 
     /// `reshape(x, g)`: the elements of x, in order, as an array over grid
-    /// `g` (a time grid, say), which must have as many points.
-    fn reshape(&mut self, b: &mut Builder, scope: &mut Scope<'a>, x: (Tv, Span), grid: &'a ast::Arg) -> Option<Tv> {
-        let target = self.expr(b, scope, &grid.value)?;
-        let Op::GridCoord(g) = b.func.insts[target.v.index()].op else {
-            self.error(
-                Diagnostic::error(grid.value.span, "the second argument of `reshape` must be the name of a grid")
-                    .with_help("e.g. `reshape(y, t)` puts the 4096 values of y on time grid t"),
-            );
-            return None;
+    /// `g` (a time grid, say), which must have as many points; or
+    /// `reshape(x, c, n)`: as a tensor `[c, n]` (channels × positions).
+    fn reshape(&mut self, b: &mut Builder, scope: &mut Scope<'a>, x: (Tv, Span), shape: &[&'a ast::Arg]) -> Option<Tv> {
+        let n = b.func.len_of(b.ty(x.0.v).shape);
+        let target = match shape {
+            [grid] if matches!(grid.value.node, ExprKind::Name(_)) => {
+                let target = self.expr(b, scope, &grid.value)?;
+                let Op::GridCoord(g) = b.func.insts[target.v.index()].op else {
+                    self.error(
+                        Diagnostic::error(grid.value.span, "the second argument of `reshape` must be the name of a grid").with_help(
+                            "e.g. `reshape(y, t)` puts the 4096 values of y on time grid t, `reshape(y, 16, 32)` makes it [16, 32]",
+                        ),
+                    );
+                    return None;
+                };
+                (g, format!("grid `{}`", b.func.grids[g.0 as usize].name))
+            }
+            dims => {
+                let mut sizes = Vec::new();
+                for d in dims {
+                    sizes.push(self.const_count(&d.value, "a dimension of `reshape`", 1)? as usize);
+                }
+                (Self::tensor_grid(b, &sizes), format!("shape {sizes:?}"))
+            }
         };
-        let (n, want) = (b.func.len_of(b.ty(x.0.v).shape), b.func.grids[g.0 as usize].len);
+        let (g, what) = target;
+        let want = b.func.grids[g.0 as usize].len;
         if n != want {
             self.error(
-                Diagnostic::error(
-                    x.1,
-                    format!(
-                        "`reshape` needs as many values as grid `{}` has points ({want}), but this has {n}",
-                        b.func.grids[g.0 as usize].name
-                    ),
-                )
-                .with_label(format!("{n} values"))
-                .with_help("the grid and the array must hold the same number of elements"),
+                Diagnostic::error(x.1, format!("`reshape` needs as many values as {what} holds ({want}), but this has {n}"))
+                    .with_label(format!("{n} values"))
+                    .with_help("the target and the array must hold the same number of elements"),
             );
             return None;
         }
         let rows = Rows { rows: 1, cols: n as u32, from: 0, count: 1 };
         Some(Tv { v: b.emit(Op::Tensor(TensorOp::TakeRows(rows), g, x.0.v, x.0.v)), dim: Dim::NONE })
+    }
+
+    /// `slice(x, from, count)`: channels `from .. from + count` of x `[c, n]`
+    /// (`[count, n]`), or elements of a one-dimensional x; the inverse of
+    /// `stack`. Lowers to `TakeRows`.
+    fn slice(&mut self, b: &mut Builder, x: (Tv, Span), from: u32, count: u32, at: Span) -> Option<Tv> {
+        let dims = dims_of(b, x.0);
+        let (rows, cols, out) = match dims.as_slice() {
+            [c, n] => (*c as u32, *n as u32, vec![count as usize, *n]),
+            d => (d.iter().product::<usize>() as u32, 1, vec![count as usize]),
+        };
+        if from as u64 + count as u64 > rows as u64 {
+            self.error(
+                Diagnostic::error(at, format!("`slice` takes channels {from}..{} but the array has {rows}", from as u64 + count as u64))
+                    .with_label(format!("{rows} channels"))
+                    .with_help("the first channel is 0: `slice(x, 0, 16)` takes the first 16"),
+            );
+            return None;
+        }
+        let grid = Self::tensor_grid(b, &out);
+        let r = Rows { rows, cols, from, count };
+        Some(Tv { v: b.emit(Op::Tensor(TensorOp::TakeRows(r), grid, x.0.v, x.0.v)), dim: Dim::NONE })
     }
 
     /// `stack(a, b, ...)`: the channels of each argument one after the

@@ -1,5 +1,6 @@
-//! `gwml generator`: the learned glitch generator of the glitch experiment
-//! (issue #7).
+//! The parametric glitch generator (issue #7, `gwml generator fit --kind
+//! parametric`): a distribution over the params of one `std::glitch`
+//! formula per family.
 //!
 //! Fitting is two stages. First, each example glitch is an inverse problem:
 //! the family's scene in `lab/models/glitch/generator.gw` matches the family's
@@ -18,12 +19,10 @@
 //! shapes `gwml data glitch` draws, with a uniformly random phase (the fit is
 //! blind to phase).
 
-use crate::parse_range;
-use crate::plot::{lines_plot, scatter_plot};
+use super::{quantiles, Draws, GeneratorFitArgs, SAMPLES, SAMPLE_RATE};
+use crate::plot::scatter_plot;
 use crate::render;
-use crate::synth::GlitchClass;
-use crate::synth::{glitches, unit_signal, GlitchOptions, GlitchSignals, GLITCH_CLASSES};
-use gwml_runtime::dataset::{self, Array, Dataset};
+use crate::synth::{unit_signal, GlitchSignals, GLITCH_CLASSES};
 use gwml_runtime::fit::{self, Algorithm, Settings};
 use gwml_runtime::{Error, Model, Run, Scene, Value};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -31,86 +30,10 @@ use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
-use std::collections::BTreeMap;
-use std::path::Path;
-use std::path::PathBuf;
 use std::time::Instant;
 
 /// The generator's inverse problems, one scene per glitch family.
-pub const GENERATOR_SOURCE: &str = include_str!("../models/glitch/generator.gw");
-
-/// `gwml generator` subcommands.
-#[derive(clap::Subcommand)]
-pub enum GeneratorCommand {
-    /// Fit a generator of one glitch family: estimate each example's shape
-    /// params, time and SNR by matched filtering with L-BFGS, then fit a
-    /// multivariate normal over them. Writes the generator as JSON.
-    Fit(GeneratorFitArgs),
-    /// Draw whitened glitches from a fitted generator into an .npz (`x`,
-    /// n × 4096, and one array per drawn param).
-    Sample(GeneratorSampleArgs),
-}
-
-#[derive(clap::Args)]
-pub struct GeneratorFitArgs {
-    /// The glitch family to model (blip, koi-fish, whistle or scratchy).
-    #[arg(long, value_enum)]
-    pub family: GlitchClass,
-    /// Example glitches: an .npz with `x` (rows of 4096 whitened samples at
-    /// 4096 Hz; with a `label` array, only the family's rows are used) or an
-    /// .npy of such rows [default: draw --n examples of the family as
-    /// `gwml data glitch --class FAMILY --koi-fish-loudness 1` does].
-    #[arg(long, value_name = "PATH")]
-    pub examples: Option<PathBuf>,
-    /// Examples to draw when --examples is not given.
-    #[arg(long, default_value_t = 200)]
-    pub n: usize,
-    /// Seed of the drawn examples.
-    #[arg(long, default_value_t = 11)]
-    pub seed: u64,
-    /// SNR range of the drawn examples (Koi Fish included).
-    #[arg(long, default_value = "15..40")]
-    pub snr: String,
-    /// Where to write the generator.
-    #[arg(long, value_name = "PATH.json")]
-    pub out: PathBuf,
-    /// Plot the examples' estimates and the generator's draws of the first
-    /// two shape params as a PNG.
-    #[arg(long, value_name = "PATH.png")]
-    pub plot: Option<PathBuf>,
-    /// Worker threads [default: all cores].
-    #[arg(long)]
-    pub threads: Option<usize>,
-}
-
-#[derive(clap::Args)]
-pub struct GeneratorSampleArgs {
-    /// A generator written by `gwml generator fit`.
-    #[arg(long, value_name = "PATH.json")]
-    pub model: PathBuf,
-    /// Glitches to draw.
-    #[arg(long, default_value_t = 6)]
-    pub n: usize,
-    /// Seed: the same seed draws the same glitches.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Add unit-variance white noise (whitened detector noise), as in
-    /// `gwml data glitch`.
-    #[arg(long)]
-    pub noise: bool,
-    /// Where to write the draws.
-    #[arg(long, value_name = "PATH.npz")]
-    pub out: PathBuf,
-    /// Plot the first (up to six) draws as a PNG.
-    #[arg(long, value_name = "PATH.png")]
-    pub plot: Option<PathBuf>,
-}
-
-/// Samples per whitened example (1 s at 4096 Hz).
-pub const SAMPLES: usize = 4096;
-
-/// Sample rate of the examples in Hz.
-const SAMPLE_RATE: f64 = 4096.0;
+pub const GENERATOR_SOURCE: &str = include_str!("../../models/glitch/generator.gw");
 
 /// A glitch family the generator models.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -295,16 +218,6 @@ pub struct Generator {
     pub examples: usize,
 }
 
-/// Glitches drawn from a [`Generator`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct Draws {
-    /// Rows of 4096 whitened samples, each at its drawn SNR in
-    /// unit-variance white noise (the noise itself not added).
-    pub rows: Vec<Vec<f64>>,
-    /// Each row's params, in the order of [`Generator::params`].
-    pub params: Vec<Vec<f64>>,
-}
-
 /// How many of the best grid points [`fit_example`] refines with L-BFGS.
 const STARTS_REFINED: usize = 3;
 
@@ -403,7 +316,8 @@ impl Generator {
         FAMILIES.iter().find(|f| f.scene == self.family).map(|f| f.class).ok_or_else(|| format!("unknown glitch family `{}`", self.family))
     }
 
-    /// Draws `n` whitened glitches and their params.
+    /// Draws `n` whitened glitches and their params (in the order of
+    /// [`Generator::params`]), each at its drawn SNR.
     pub fn sample(&self, n: usize, seed: u64) -> Result<Draws, String> {
         let class = self.class()?;
         let draws = self.sample_params(n, seed)?;
@@ -427,7 +341,7 @@ impl Generator {
             let w = unit_signal(&mut run, class, &settings).map_err(|e| e.to_string())?;
             rows.push(w.into_iter().map(|v| snr * v).collect());
         }
-        Ok(Draws { rows, params: draws })
+        Ok(Draws { rows, names: self.params.iter().map(|p| p.name.clone()).collect(), params: draws })
     }
 
     /// The generator as JSON (the file `gwml generator fit` writes).
@@ -486,49 +400,11 @@ pub fn family_model() -> Result<Model, Error> {
     Model::from_source("lab/models/glitch/generator.gw", GENERATOR_SOURCE)
 }
 
-/// The example rows of a dataset file: `x`, cut to the family's rows when a
-/// `label` array is present; a single `.npy` array is taken as the rows.
-fn read_examples(path: &Path, class: usize) -> Result<Vec<Vec<f64>>, String> {
-    let ds = Dataset::read(path).map_err(render)?;
-    let x = match ds.arrays.get("x") {
-        Some(x) => x,
-        None if ds.arrays.len() == 1 => ds.arrays.values().next().expect("one array"),
-        None => return Err(format!("error: {} has no array `x` of examples", path.display())),
-    };
-    if x.shape.len() != 2 || x.row_len() != SAMPLES {
-        return Err(format!(
-            "error: {}: the examples must be rows of {SAMPLES} whitened samples (1 s at 4096 Hz), got shape {:?}",
-            path.display(),
-            x.shape
-        ));
-    }
-    let labels = ds.arrays.get("label").filter(|l| l.rows() == x.rows());
-    Ok((0..x.rows()).filter(|i| labels.is_none_or(|l| l.data[*i] == class as f64)).map(|i| x.row(i).to_vec()).collect())
-}
-
-/// Quantiles of `xs` at the given fractions (nearest rank).
-fn quantiles(xs: &[f64], at: &[f64]) -> Vec<f64> {
-    let mut v: Vec<f64> = xs.iter().copied().filter(|x| x.is_finite()).collect();
-    v.sort_by(f64::total_cmp);
-    at.iter().map(|q| v.get(((v.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(f64::NAN)).collect()
-}
-
-/// `gwml generator fit`.
-pub fn fit_command(a: GeneratorFitArgs) -> Result<(), String> {
-    let class = a.family.label();
+/// `gwml generator fit --kind parametric`: each example's shape params,
+/// time and SNR by matched filtering, then the normal over them; prints
+/// the examples' quantiles against the generator's.
+pub fn fit_command(a: &GeneratorFitArgs, class: usize, examples: &[Vec<f64>], threads: usize) -> Result<(), String> {
     let family = family(class).map_err(|e| format!("error: {e}"))?;
-    let examples = match &a.examples {
-        Some(path) => read_examples(path, class)?,
-        None => {
-            let (lo, hi) = parse_range(&a.snr)?;
-            // Every family at the stated SNR, Koi Fish included.
-            let options =
-                GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), koi_fish_loudness: 1.0, class: Some(class), ..Default::default() };
-            let ds = glitches(&options).map_err(render)?;
-            let x = &ds.arrays["x"];
-            (0..x.rows()).map(|i| x.row(i).to_vec()).collect()
-        }
-    };
     let model = family_model().map_err(render)?;
     let scene = model.scene(Some(family.scene)).map_err(render)?;
     let shape = shape_params(&scene).map_err(render)?;
@@ -540,7 +416,6 @@ pub fn fit_command(a: GeneratorFitArgs) -> Result<(), String> {
             shape.len() + 2
         ));
     }
-    let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("error: {e}"))?;
     let bar = ProgressBar::new(examples.len() as u64);
     bar.set_style(
@@ -594,59 +469,6 @@ pub fn fit_command(a: GeneratorFitArgs) -> Result<(), String> {
         let drawn: Vec<(f64, f64)> = draws.iter().take(fits.len().max(200)).map(|d| (d[0], d[1])).collect();
         let title = format!("{} generator: {} examples and draws", GLITCH_CLASSES[class], fits.len());
         scatter_plot(path, &title, &x.label(), &y.label(), &[("examples (fitted)", &ex), ("generator draws", &drawn)])?;
-        println!("wrote {}", path.display());
-    }
-    Ok(())
-}
-
-/// `gwml generator sample`.
-pub fn sample_command(a: GeneratorSampleArgs) -> Result<(), String> {
-    let text = std::fs::read_to_string(&a.model).map_err(|e| format!("error: cannot read {}: {e}", a.model.display()))?;
-    let json = serde_json::from_str(&text).map_err(|e| format!("error: {}: {e}", a.model.display()))?;
-    let g = Generator::from_json(&json).map_err(|e| format!("error: {}: {e}", a.model.display()))?;
-    let Draws { mut rows, params: draws } = g.sample(a.n, a.seed).map_err(|e| format!("error: {e}"))?;
-    if a.noise {
-        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(a.seed.wrapping_add(1));
-        for row in &mut rows {
-            row.iter_mut().for_each(|v| *v += Distribution::<f64>::sample(&StandardNormal, &mut rng));
-        }
-    }
-    let mut arrays = BTreeMap::new();
-    arrays.insert("x".to_string(), Array::new(vec![a.n, SAMPLES], rows.concat()).map_err(render)?);
-    for (i, p) in g.params.iter().enumerate() {
-        arrays.insert(p.name.clone(), Array::new(vec![a.n], draws.iter().map(|d| d[i]).collect()).map_err(render)?);
-    }
-    dataset::write_npz(&a.out, &Dataset { arrays }).map_err(render)?;
-    let names: Vec<&str> = g.params.iter().map(|p| p.name.as_str()).collect();
-    println!(
-        "wrote {}: x ({} × {SAMPLES}, whitened, 4096 Hz{}), and the drawn {}",
-        a.out.display(),
-        a.n,
-        if a.noise { ", in white noise" } else { "" },
-        names.join(", ")
-    );
-    if let Some(path) = &a.plot {
-        let shown = &rows[..rows.len().min(6)];
-        let spacing = 2.2 * shown.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
-        let times: Vec<f64> = (0..SAMPLES).map(|j| j as f64 / SAMPLES as f64).collect();
-        let offset: Vec<Vec<f64>> = shown.iter().enumerate().map(|(k, r)| r.iter().map(|v| v - spacing * k as f64).collect()).collect();
-        let labels: Vec<String> = draws
-            .iter()
-            .take(shown.len())
-            .map(|d| {
-                g.params
-                    .iter()
-                    .zip(d)
-                    .filter(|(p, _)| p.name != "t0")
-                    .map(|(p, v)| format!("{} {v:.3}", p.name))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            })
-            .collect();
-        let series: Vec<(&str, &[f64], &[f64])> =
-            labels.iter().zip(&offset).map(|(l, y)| (l.as_str(), times.as_slice(), y.as_slice())).collect();
-        let title = format!("{} generator: {} draws (seed {})", GLITCH_CLASSES[g.class()?], shown.len(), a.seed);
-        lines_plot(path, &title, "time (s)", "whitened strain, offset per draw", &series)?;
         println!("wrote {}", path.display());
     }
     Ok(())
@@ -715,7 +537,7 @@ mod tests {
         // Round trip through the file format, and reproducible sampling.
         let back = Generator::from_json(&serde_json::from_str(&g.to_json().to_string()).unwrap()).unwrap();
         assert_eq!(back, g);
-        let Draws { rows, params: drawn } = g.sample(3, 9).unwrap();
+        let Draws { rows, params: drawn, .. } = g.sample(3, 9).unwrap();
         assert_eq!((rows.len(), rows[0].len()), (3, SAMPLES));
         assert_eq!(g.sample(3, 9).unwrap().rows, rows);
         // Each row is the unit signal at its drawn SNR.

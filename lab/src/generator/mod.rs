@@ -1,0 +1,263 @@
+//! `gwml generator`: the glitch generator of the pipeline, which draws new
+//! whitened glitches like the examples it was fitted to. Two kinds:
+//! [`learned`] (a variational autoencoder written in
+//! `lab/models/glitch/vae.gw` and trained by gwml's trainer: it learns the
+//! examples' shapes) and [`parametric`] (a multivariate normal over the
+//! params of one `std::glitch` formula, estimated from each example by
+//! matched filtering: it can only draw that formula). This module owns the
+//! command line, the example files and the draws' output.
+
+pub mod learned;
+pub mod parametric;
+
+use crate::parse_range;
+use crate::plot::lines_plot;
+use crate::render;
+use crate::synth::{glitches, GlitchClass, GlitchOptions, GLITCH_CLASSES};
+use gwml_runtime::dataset::{self, Array, Dataset};
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// What a generator is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Kind {
+    /// A variational autoencoder that learns the examples' shapes.
+    Learned,
+    /// A distribution over the params of the family's formula.
+    Parametric,
+}
+
+/// `gwml generator` subcommands.
+#[derive(clap::Subcommand)]
+pub enum GeneratorCommand {
+    /// Fit a generator of one glitch family to example glitches: a
+    /// variational autoencoder trained on the examples (--kind learned), or
+    /// a multivariate normal over the family formula's params estimated
+    /// from each example by matched filtering (--kind parametric). Writes
+    /// the generator as JSON.
+    Fit(GeneratorFitArgs),
+    /// Draw whitened glitches from a fitted generator into an .npz (`x`,
+    /// n × 4096, and one array per drawn param).
+    Sample(GeneratorSampleArgs),
+}
+
+#[derive(clap::Args)]
+pub struct GeneratorFitArgs {
+    /// The glitch family to model (blip, koi-fish, whistle or scratchy).
+    #[arg(long, value_enum)]
+    pub family: GlitchClass,
+    /// What the generator is: a variational autoencoder that learns the
+    /// shapes of the examples, or a distribution over the params of the
+    /// family's `std::glitch` formula (the baseline).
+    #[arg(long, value_enum, default_value_t = Kind::Learned)]
+    pub kind: Kind,
+    /// Training epochs of the learned generator.
+    #[arg(long, default_value_t = 200)]
+    pub epochs: usize,
+    /// Example glitches: an .npz with `x` (rows of 4096 whitened samples at
+    /// 4096 Hz; with a `label` array, only the family's rows are used) or an
+    /// .npy of such rows [default: draw --n examples of the family as
+    /// `gwml data glitch --class FAMILY --koi-fish-loudness 1` does].
+    #[arg(long, value_name = "PATH")]
+    pub examples: Option<PathBuf>,
+    /// Examples to draw when --examples is not given.
+    #[arg(long, default_value_t = 200)]
+    pub n: usize,
+    /// Seed of the drawn examples.
+    #[arg(long, default_value_t = 11)]
+    pub seed: u64,
+    /// SNR range of the drawn examples (Koi Fish included).
+    #[arg(long, default_value = "15..40")]
+    pub snr: String,
+    /// Where to write the generator (a learned one writes its weights
+    /// beside it, PATH.safetensors).
+    #[arg(long, value_name = "PATH.json")]
+    pub out: PathBuf,
+    /// Plot the examples' estimates and the generator's draws of the first
+    /// two shape params as a PNG.
+    #[arg(long, value_name = "PATH.png")]
+    pub plot: Option<PathBuf>,
+    /// Worker threads [default: all cores].
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+#[derive(clap::Args)]
+pub struct GeneratorSampleArgs {
+    /// A generator written by `gwml generator fit`.
+    #[arg(long, value_name = "PATH.json")]
+    pub model: PathBuf,
+    /// Glitches to draw.
+    #[arg(long, default_value_t = 6)]
+    pub n: usize,
+    /// Seed: the same seed draws the same glitches.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Add unit-variance white noise (whitened detector noise), as in
+    /// `gwml data glitch`.
+    #[arg(long)]
+    pub noise: bool,
+    /// Where to write the draws.
+    #[arg(long, value_name = "PATH.npz")]
+    pub out: PathBuf,
+    /// Plot the first (up to six) draws as a PNG.
+    #[arg(long, value_name = "PATH.png")]
+    pub plot: Option<PathBuf>,
+}
+
+/// Samples per whitened example (1 s at 4096 Hz).
+pub const SAMPLES: usize = 4096;
+
+/// Sample rate of the examples in Hz.
+pub const SAMPLE_RATE: f64 = 4096.0;
+
+/// Glitches drawn from a generator.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Draws {
+    /// Rows of 4096 whitened samples (the glitch alone, in units of the
+    /// unit-variance white noise it would sit in).
+    pub rows: Vec<Vec<f64>>,
+    /// The names of the per-row values in `params`.
+    pub names: Vec<String>,
+    /// Each row's drawn values (shape params, time, SNR, ...).
+    pub params: Vec<Vec<f64>>,
+}
+
+/// A generator read from its JSON file.
+pub enum Generator {
+    /// A variational autoencoder.
+    Learned(learned::LearnedGenerator),
+    /// A distribution over a formula's params.
+    Parametric(parametric::Generator),
+}
+
+impl Generator {
+    /// Reads a generator written by `gwml generator fit` (a file without a
+    /// `kind` is parametric, as every file was before the learned kind).
+    pub fn read(path: &Path) -> Result<Generator, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
+        let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("error: {}: {e}", path.display()))?;
+        let g = match json["kind"].as_str() {
+            Some("learned") => Generator::Learned(learned::LearnedGenerator::from_json(&json, path)?),
+            None | Some("parametric") => Generator::Parametric(parametric::Generator::from_json(&json)?),
+            Some(other) => return Err(format!("unknown generator kind `{other}`")),
+        };
+        Ok(g)
+    }
+
+    /// The glitch class it draws.
+    pub fn class(&self) -> Result<usize, String> {
+        match self {
+            Generator::Learned(g) => Ok(g.class),
+            Generator::Parametric(g) => g.class(),
+        }
+    }
+
+    /// Draws `n` whitened glitches (the same seed draws the same glitches).
+    pub fn sample(&self, n: usize, seed: u64) -> Result<Draws, String> {
+        match self {
+            Generator::Learned(g) => g.sample(n, seed).map_err(render),
+            Generator::Parametric(g) => g.sample(n, seed),
+        }
+    }
+}
+
+/// The example rows of a dataset file: `x`, cut to the family's rows when a
+/// `label` array is present; a single `.npy` array is taken as the rows.
+pub fn read_examples(path: &Path, class: usize) -> Result<Vec<Vec<f64>>, String> {
+    let ds = Dataset::read(path).map_err(render)?;
+    let x = match ds.arrays.get("x") {
+        Some(x) => x,
+        None if ds.arrays.len() == 1 => ds.arrays.values().next().expect("one array"),
+        None => return Err(format!("error: {} has no array `x` of examples", path.display())),
+    };
+    if x.shape.len() != 2 || x.row_len() != SAMPLES {
+        return Err(format!(
+            "error: {}: the examples must be rows of {SAMPLES} whitened samples (1 s at 4096 Hz), got shape {:?}",
+            path.display(),
+            x.shape
+        ));
+    }
+    let labels = ds.arrays.get("label").filter(|l| l.rows() == x.rows());
+    Ok((0..x.rows()).filter(|i| labels.is_none_or(|l| l.data[*i] == class as f64)).map(|i| x.row(i).to_vec()).collect())
+}
+
+/// Quantiles of `xs` at the given fractions (nearest rank).
+pub fn quantiles(xs: &[f64], at: &[f64]) -> Vec<f64> {
+    let mut v: Vec<f64> = xs.iter().copied().filter(|x| x.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    at.iter().map(|q| v.get(((v.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(f64::NAN)).collect()
+}
+
+/// The examples of `gwml generator fit`: the file's rows of the family, or
+/// `--n` draws of the library's own.
+fn examples(a: &GeneratorFitArgs, class: usize) -> Result<Vec<Vec<f64>>, String> {
+    match &a.examples {
+        Some(path) => read_examples(path, class),
+        None => {
+            let (lo, hi) = parse_range(&a.snr)?;
+            // Every family at the stated SNR, Koi Fish included.
+            let options =
+                GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), koi_fish_loudness: 1.0, class: Some(class), ..Default::default() };
+            let ds = glitches(&options).map_err(render)?;
+            let x = &ds.arrays["x"];
+            Ok((0..x.rows()).map(|i| x.row(i).to_vec()).collect())
+        }
+    }
+}
+
+/// `gwml generator fit`.
+pub fn fit_command(a: GeneratorFitArgs) -> Result<(), String> {
+    let class = a.family.label();
+    let examples = examples(&a, class)?;
+    let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
+    match a.kind {
+        Kind::Parametric => parametric::fit_command(&a, class, &examples, threads),
+        Kind::Learned => learned::fit_command(&a, class, &examples, threads),
+    }
+}
+
+/// `gwml generator sample`.
+pub fn sample_command(a: GeneratorSampleArgs) -> Result<(), String> {
+    let g =
+        Generator::read(&a.model).map_err(|e| if e.starts_with("error:") { e } else { format!("error: {}: {e}", a.model.display()) })?;
+    let Draws { mut rows, names, params: draws } = g.sample(a.n, a.seed).map_err(|e| format!("error: {e}"))?;
+    if a.noise {
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(a.seed.wrapping_add(1));
+        for row in &mut rows {
+            row.iter_mut().for_each(|v| *v += Distribution::<f64>::sample(&StandardNormal, &mut rng));
+        }
+    }
+    let mut arrays = BTreeMap::new();
+    arrays.insert("x".to_string(), Array::new(vec![a.n, SAMPLES], rows.concat()).map_err(render)?);
+    for (i, name) in names.iter().enumerate() {
+        arrays.insert(name.clone(), Array::new(vec![a.n], draws.iter().map(|d| d[i]).collect()).map_err(render)?);
+    }
+    dataset::write_npz(&a.out, &Dataset { arrays }).map_err(render)?;
+    println!(
+        "wrote {}: x ({} × {SAMPLES}, whitened, 4096 Hz{}), and the drawn {}",
+        a.out.display(),
+        a.n,
+        if a.noise { ", in white noise" } else { "" },
+        names.join(", ")
+    );
+    if let Some(path) = &a.plot {
+        let shown = &rows[..rows.len().min(6)];
+        let spacing = 2.2 * shown.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
+        let times: Vec<f64> = (0..SAMPLES).map(|j| j as f64 / SAMPLE_RATE).collect();
+        let offset: Vec<Vec<f64>> = shown.iter().enumerate().map(|(k, r)| r.iter().map(|v| v - spacing * k as f64).collect()).collect();
+        let labels: Vec<String> = draws
+            .iter()
+            .take(shown.len())
+            .map(|d| names.iter().zip(d).filter(|(n, _)| *n != "t0").map(|(n, v)| format!("{n} {v:.3}")).collect::<Vec<_>>().join(", "))
+            .collect();
+        let series: Vec<(&str, &[f64], &[f64])> =
+            labels.iter().zip(&offset).map(|(l, y)| (l.as_str(), times.as_slice(), y.as_slice())).collect();
+        let title = format!("{} generator: {} draws (seed {})", GLITCH_CLASSES[g.class()?], shown.len(), a.seed);
+        lines_plot(path, &title, "time (s)", "whitened strain, offset per draw", &series)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
