@@ -9,6 +9,7 @@
 
 pub mod learned;
 pub mod parametric;
+pub mod realism;
 
 use crate::parse_range;
 use crate::plot::lines_plot;
