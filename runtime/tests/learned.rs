@@ -416,3 +416,30 @@ fn kl_normal_is_the_closed_form_divergence() {
     let have = scalar(&run.forward().unwrap(), "kl");
     assert!((have - want).abs() < 1e-14, "{have} vs {want}");
 }
+
+/// `slice` takes channels of a tensor, also at an index a module argument
+/// gives (`k + 1` with `k` bound to a constant), and its gradient reaches
+/// exactly the weights of the rows it took.
+#[test]
+fn slices_at_module_arguments_take_the_right_rows() {
+    let src = "module at(p, k) {\n    sum(slice(p, k + 1, 1))\n}\n\
+               learned net(x) {\n    weight w: [4, 3] = glorot(seed: 1)\n    let p = dense(x, w)\n    \
+               at(p, 1) * 2.0 + at(p, 0) + sum(slice(reshape(p, 2, 2), 1, 1) * reshape(x2, 1, 2))\n}\n\
+               scene s {\n  grid g = index(3)\n  grid h = index(2)\n  input x: real[g] = 0.0\n  input x2: real[h] = 0.0\n  \
+               output out = net(x)\n  grad out wrt net\n}\n";
+    let src = src.replace("learned net(x)", "learned net(x, x2)").replace("net(x)\n  grad", "net(x, x2)\n  grad");
+    let x = pseudo_random(3, 21);
+    let x2 = pseudo_random(2, 22);
+    let model = Model::from_source("slice.gw", &src).unwrap();
+    let scene = model.scene(None).unwrap();
+    let w: Vec<f64> =
+        scene.ir().inputs.iter().find(|i| i.name == "net.w").unwrap().default.as_ref().unwrap().iter().map(|z| z.re).collect();
+    let p: Vec<f64> = (0..4).map(|r| (0..3).map(|c| w[r * 3 + c] * x[c]).sum()).collect();
+    let want = 2.0 * p[2] + p[1] + p[2] * x2[0] + p[3] * x2[1];
+    let mut run = scene.bind();
+    run.input_real("x", &x).unwrap().input_real("x2", &x2).unwrap();
+    let have = scalar(&run.forward().unwrap(), "out");
+    assert!((have - want).abs() < 1e-14, "{have} vs {want}");
+    check_weight_gradients(&src, &[("x", x.clone()), ("x2", x2.clone())], "out");
+    check_against_interpreter(&src, &[("x", x), ("x2", x2)]);
+}

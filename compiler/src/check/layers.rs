@@ -233,6 +233,35 @@ impl<'a> Checker<'a> {
         Some(x as u32)
     }
 
+    /// A whole number ≥ `min` known at compile time, evaluated in `scope`:
+    /// unlike [`Checker::const_count`], it may name a module argument bound
+    /// to a constant (`module at(p, i) { sum(slice(p, i, 1)) }`).
+    fn scoped_count(&mut self, b: &mut Builder, scope: &mut Scope<'a>, e: &'a Expr, what: &str, min: u32) -> Option<u32> {
+        let tv = self.expr(b, scope, e)?;
+        match b.evaluate_constant(tv.v) {
+            Some(c) if c.im == 0.0 && b.ty(tv.v).shape == Shape::Scalar => {
+                let x = c.re;
+                if !tv.dim.is_none() || x.fract() != 0.0 || !(x >= min as f64) || !(x < 2f64.powi(31)) {
+                    self.error(
+                        Diagnostic::error(e.span, format!("{what} must be a whole number ≥ {min}"))
+                            .with_label(format!("this is {x}"))
+                            .with_help("write a whole number without a unit"),
+                    );
+                    return None;
+                }
+                Some(x as u32)
+            }
+            _ => {
+                self.error(
+                    Diagnostic::error(e.span, format!("{what} must be known when the scene compiles"))
+                        .with_label("not a constant")
+                        .with_help("use a number, a named constant, a knob, or a module argument given one of these"),
+                );
+                None
+            }
+        }
+    }
+
     /// `dense`, `conv1d` and the pooling layers.
     pub(super) fn layer_call(
         &mut self,
@@ -335,8 +364,8 @@ impl<'a> Checker<'a> {
             }
             "stack" => self.stack(b, &vals),
             "slice" => {
-                let from = self.const_count(&positional[1].value, "the first channel of `slice`", 0)?;
-                let count = self.const_count(&positional[2].value, "the channel count of `slice`", 1)?;
+                let from = self.scoped_count(b, scope, &positional[1].value, "the first channel of `slice`", 0)?;
+                let count = self.scoped_count(b, scope, &positional[2].value, "the channel count of `slice`", 1)?;
                 self.slice(b, x, from, count, at)
             }
             "dropout" => {

@@ -80,6 +80,23 @@ impl Builder {
         v
     }
 
+    /// The value of `v` when it is computed from constants alone by
+    /// elementwise arithmetic (whether or not this builder folds), e.g. a
+    /// module argument `k + 1` with `k` bound to 0.
+    pub fn evaluate_constant(&self, v: Value) -> Option<C64> {
+        let elem = self.ty(v).elem;
+        match self.func.insts[v.index()].op {
+            Op::Unary(op, a) => Some(super::eval::unary(op, self.evaluate_constant(a)?, elem)),
+            Op::Binary(op, a, b) => Some(super::eval::binary(op, self.evaluate_constant(a)?, self.evaluate_constant(b)?, elem)),
+            Op::PowConst(a, c) => {
+                let x = self.evaluate_constant(a)?;
+                (x.im == 0.0).then(|| C64::new(super::eval::pow_const(x.re, f64::from_bits(c)), 0.0))
+            }
+            Op::Broadcast(a, _) => self.evaluate_constant(a),
+            _ => self.const_of(v),
+        }
+    }
+
     /// The scalar constant behind `v`, looking through broadcasts.
     pub fn const_of(&self, v: Value) -> Option<C64> {
         match self.func.insts[v.index()].op {
