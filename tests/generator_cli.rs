@@ -120,6 +120,79 @@ fn fit_a_learned_generator_and_sample_from_it() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--holdout` fits to the first rows and measures realism against the
+/// clean shapes of the rest; without clean shapes it is an error.
+#[test]
+fn holdout_measures_realism_against_clean_shapes() {
+    use gwml::runtime::dataset::{write_npz, Array};
+    let dir = std::env::temp_dir().join(format!("gwml-generator-holdout-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |name: &str| dir.join(name).display().to_string();
+    // 40 damped sinusoids at 0.5 s, SNR 20, in deterministic pseudo-noise.
+    let (n, rows) = (4096, 40);
+    let mut state = 7u64;
+    let mut noise = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 3.4641 - 1.7321
+    };
+    let mut clean = Vec::new();
+    for r in 0..rows {
+        let f = 100.0 + 5.0 * r as f64;
+        let s: Vec<f64> = (0..n)
+            .map(|i| {
+                let u = i as f64 / 4096.0 - 0.5;
+                if u < 0.0 {
+                    0.0
+                } else {
+                    (-u / 0.01).exp() * (std::f64::consts::TAU * f * u).sin()
+                }
+            })
+            .collect();
+        let norm = s.iter().map(|v| v * v).sum::<f64>().sqrt();
+        clean.extend(s.iter().map(|v| 20.0 * v / norm));
+    }
+    let noisy: Vec<f64> = clean.iter().map(|v| v + noise()).collect();
+    let mut arrays = std::collections::BTreeMap::new();
+    arrays.insert("x".to_string(), Array::new(vec![rows, n], noisy.clone()).unwrap());
+    arrays.insert("clean".to_string(), Array::new(vec![rows, n], clean).unwrap());
+    write_npz(Path::new(&p("set.npz")), &Dataset { arrays }).unwrap();
+    let (ok, out, err) = gwml(&[
+        "generator",
+        "fit",
+        "--family",
+        "blip",
+        "--examples",
+        &p("set.npz"),
+        "--holdout",
+        "0.25",
+        "--epochs",
+        "5",
+        "--out",
+        &p("g.json"),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("trained a Blip generator on 30 examples"), "{out}");
+    let line = out.lines().find(|l| l.starts_with("realism on 10 held-out examples")).unwrap_or_else(|| panic!("{out}"));
+    let accuracies: Vec<f64> =
+        line.split("SNR ").skip(1).map(|s| s.split(": ").nth(1).unwrap().trim().trim_end_matches(';').parse().unwrap()).collect();
+    assert_eq!(accuracies.len(), 2, "{line}");
+    assert!(accuracies.iter().all(|a| (0.0..=1.0).contains(a)), "{line}");
+    // Without clean shapes there is nothing to measure against.
+    let mut arrays = std::collections::BTreeMap::new();
+    arrays.insert("x".to_string(), Array::new(vec![rows, n], noisy).unwrap());
+    write_npz(Path::new(&p("noisy.npz")), &Dataset { arrays }).unwrap();
+    let (ok, _, err) =
+        gwml(&["generator", "fit", "--family", "blip", "--examples", &p("noisy.npz"), "--holdout", "0.25", "--out", &p("h.json")]);
+    assert!(!ok && err.contains("needs an array `clean`"), "{err}");
+    let (ok, _, err) =
+        gwml(&["generator", "fit", "--family", "blip", "--examples", &p("set.npz"), "--holdout", "1.5", "--out", &p("h.json")]);
+    assert!(!ok && err.contains("--holdout must be a fraction"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn bad_generator_inputs_are_clear_errors() {
     let dir = std::env::temp_dir().join(format!("gwml-generator-bad-{}", std::process::id()));

@@ -57,6 +57,12 @@ pub struct GeneratorFitArgs {
     /// Training epochs of the learned generator.
     #[arg(long, default_value_t = 200)]
     pub epochs: usize,
+    /// Hold this fraction of the examples (the last rows) out of the fit
+    /// and measure the generator's realism against them: a classifier
+    /// two-sample test of draws against their clean shapes (array `clean`
+    /// of the examples file) at SNR 20 and 40.
+    #[arg(long, default_value_t = 0.0)]
+    pub holdout: f64,
     /// Example glitches: an .npz with `x` (rows of 4096 whitened samples at
     /// 4096 Hz; with a `label` array, only the family's rows are used) or an
     /// .npy of such rows [default: draw --n examples of the family as
@@ -165,9 +171,19 @@ impl Generator {
     }
 }
 
-/// The example rows of a dataset file: `x`, cut to the family's rows when a
-/// `label` array is present; a single `.npy` array is taken as the rows.
-pub fn read_examples(path: &Path, class: usize) -> Result<Vec<Vec<f64>>, String> {
+/// Example glitches: whitened rows as a detector sees them, and, when the
+/// file holds them, the same glitches without noise.
+pub struct Examples {
+    /// Rows of 4096 whitened samples (glitch plus noise).
+    pub noisy: Vec<Vec<f64>>,
+    /// The glitches alone, row for row (array `clean` of the file).
+    pub clean: Option<Vec<Vec<f64>>>,
+}
+
+/// The example rows of a dataset file: `x` (and `clean`, if present), cut
+/// to the family's rows when a `label` array is present; a single `.npy`
+/// array is taken as the rows.
+pub fn read_examples(path: &Path, class: usize) -> Result<Examples, String> {
     let ds = Dataset::read(path).map_err(render)?;
     let x = match ds.arrays.get("x") {
         Some(x) => x,
@@ -182,7 +198,15 @@ pub fn read_examples(path: &Path, class: usize) -> Result<Vec<Vec<f64>>, String>
         ));
     }
     let labels = ds.arrays.get("label").filter(|l| l.rows() == x.rows());
-    Ok((0..x.rows()).filter(|i| labels.is_none_or(|l| l.data[*i] == class as f64)).map(|i| x.row(i).to_vec()).collect())
+    let keep: Vec<usize> = (0..x.rows()).filter(|i| labels.is_none_or(|l| l.data[*i] == class as f64)).collect();
+    let clean = match ds.arrays.get("clean") {
+        Some(c) if c.shape != x.shape => {
+            return Err(format!("error: {}: `clean` has shape {:?} but `x` has {:?}", path.display(), c.shape, x.shape));
+        }
+        Some(c) => Some(keep.iter().map(|&i| c.row(i).to_vec()).collect()),
+        None => None,
+    };
+    Ok(Examples { noisy: keep.iter().map(|&i| x.row(i).to_vec()).collect(), clean })
 }
 
 /// Quantiles of `xs` at the given fractions (nearest rank).
@@ -194,7 +218,7 @@ pub fn quantiles(xs: &[f64], at: &[f64]) -> Vec<f64> {
 
 /// The examples of `gwml generator fit`: the file's rows of the family, or
 /// `--n` draws of the library's own.
-fn examples(a: &GeneratorFitArgs, class: usize) -> Result<Vec<Vec<f64>>, String> {
+fn examples(a: &GeneratorFitArgs, class: usize) -> Result<Examples, String> {
     match &a.examples {
         Some(path) => read_examples(path, class),
         None => {
@@ -204,7 +228,7 @@ fn examples(a: &GeneratorFitArgs, class: usize) -> Result<Vec<Vec<f64>>, String>
                 GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), koi_fish_loudness: 1.0, class: Some(class), ..Default::default() };
             let ds = glitches(&options).map_err(render)?;
             let x = &ds.arrays["x"];
-            Ok((0..x.rows()).map(|i| x.row(i).to_vec()).collect())
+            Ok(Examples { noisy: (0..x.rows()).map(|i| x.row(i).to_vec()).collect(), clean: None })
         }
     }
 }
@@ -213,12 +237,42 @@ fn examples(a: &GeneratorFitArgs, class: usize) -> Result<Vec<Vec<f64>>, String>
 pub fn fit_command(a: GeneratorFitArgs) -> Result<(), String> {
     let class = a.family.label();
     let examples = examples(&a, class)?;
-    let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
-    match a.kind {
-        Kind::Parametric => parametric::fit_command(&a, class, &examples, threads),
-        Kind::Learned => learned::fit_command(&a, class, &examples, threads),
+    if !(0.0..0.9).contains(&a.holdout) {
+        return Err(format!("error: --holdout must be a fraction in [0, 0.9), got {}", a.holdout));
     }
+    let held = (a.holdout * examples.noisy.len() as f64).round() as usize;
+    let fitted = examples.noisy.len() - held;
+    let held_clean = match (&examples.clean, held) {
+        (_, 0) => None,
+        (Some(clean), _) => Some(&clean[fitted..]),
+        (None, _) => {
+            return Err("error: --holdout measures realism against the held-out examples' clean shapes: the examples file needs an array \
+                        `clean` (the glitches without noise, row for row)"
+                .into())
+        }
+    };
+    let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
+    let rows = &examples.noisy[..fitted];
+    match a.kind {
+        Kind::Parametric => parametric::fit_command(&a, class, rows, threads)?,
+        Kind::Learned => learned::fit_command(&a, class, rows, threads)?,
+    }
+    if let Some(held_out) = held_clean {
+        let g = Generator::read(&a.out)?;
+        let draws = g.sample(held_out.len(), a.seed.wrapping_add(1))?.rows;
+        let mut line = format!("realism on {} held-out examples (two-sample accuracy; 0.5 = indistinguishable):", held_out.len());
+        for snr in REALISM_SNRS {
+            let o = realism::TwoSampleOptions { snr, seed: a.seed, epochs: 40, threads };
+            let acc = realism::two_sample_accuracy(&draws, held_out, &o).map_err(render)?;
+            line += &format!(" SNR {snr}: {acc:.3};");
+        }
+        println!("{}", line.trim_end_matches(';'));
+    }
+    Ok(())
 }
+
+/// The SNRs `--holdout` measures realism at (issue #30's).
+const REALISM_SNRS: [f64; 2] = [20.0, 40.0];
 
 /// `gwml generator sample`.
 pub fn sample_command(a: GeneratorSampleArgs) -> Result<(), String> {
