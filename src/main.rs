@@ -390,6 +390,11 @@ pub struct DataArgs {
     /// centres and chirp mergers at 0.4-0.6 s), for classifiers `gwml scan` runs.
     #[arg(long)]
     pub centred: bool,
+    /// glitch only: draw the shapes of a class from a generator fitted by
+    /// `gwml generator fit` (the file says which class) instead of its
+    /// formula, each scaled to the --snr range; repeat for several classes.
+    #[arg(long, value_name = "GEN.json")]
+    pub generator: Vec<PathBuf>,
     /// The .npz file to write.
     #[arg(long, value_name = "PATH.npz")]
     pub out: PathBuf,

@@ -117,6 +117,19 @@ fn fit_a_learned_generator_and_sample_from_it() {
     let (ok, out2, _) = gwml(&["generator", "sample", "--model", &p("vae.json"), "--n", "4", "--seed", "2", "--out", &p("again.npz")]);
     assert!(ok, "{out2}");
     assert_eq!(Dataset::read(Path::new(&p("again.npz"))).unwrap().arrays["x"].data, ds.arrays["x"].data, "the same seed draws the same");
+    // `gwml data glitch --generator` draws that class's shapes from it.
+    let data = |out: &str, extra: &[&str]| {
+        let mut args = vec!["data", "glitch", "--class", "blip", "--n", "6", "--seed", "4", "--snr", "20..20", "--out", out];
+        args.extend_from_slice(extra);
+        gwml(&args)
+    };
+    let (ok, out, err) = data(&p("gen.npz"), &["--generator", &p("vae.json")]);
+    assert!(ok && out.contains("6 Blip"), "{out}{err}");
+    let (ok, _, err) = data(&p("formula.npz"), &[]);
+    assert!(ok, "{err}");
+    let (generated, formula) = (Dataset::read(Path::new(&p("gen.npz"))).unwrap(), Dataset::read(Path::new(&p("formula.npz"))).unwrap());
+    assert_eq!(generated.arrays["x"].shape, vec![6, 4096]);
+    assert_ne!(generated.arrays["x"].data, formula.arrays["x"].data, "the generator's shapes, not the formula's");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -207,6 +220,8 @@ fn bad_generator_inputs_are_clear_errors() {
         .unwrap();
     let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("learned.json"), "--out", &p("d.npz")]);
     assert!(!ok && err.contains("gone.safetensors"), "a missing weights file is named: {err}");
+    let (ok, _, err) = gwml(&["data", "glitch", "--generator", &p("missing.json"), "--out", &p("g.npz")]);
+    assert!(!ok && err.contains("cannot read") && err.contains("missing.json"), "{err}");
     let (ok, _, err) = gwml(&["data", "bursts", "--class", "blip", "--out", &p("b.npz")]);
     assert!(!ok && err.contains("--class applies to glitch data only"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);

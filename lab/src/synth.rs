@@ -271,6 +271,18 @@ pub fn draw_shape<R: Rng>(rng: &mut R, class: usize) -> [(&'static str, f64); 15
 /// random phase (0–2π), so no class can be told by its phase. The SNR is
 /// drawn uniformly from `o.snr`, times `o.koi_fish_loudness` for Koi Fish.
 pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
+    glitches_with(o, &mut |_| Ok(None))
+}
+
+/// A source of glitch shapes other than the library's formulas (a fitted
+/// generator): `shape(class)` gives a clean whitened row of 4096 samples
+/// for that class, or `None` to draw the class's formula.
+pub type ShapeSource<'a> = dyn FnMut(usize) -> Result<Option<Vec<f64>>, Error> + 'a;
+
+/// [`glitches`], with the shapes of some classes from `shape`: each such
+/// row is its noise plus the given shape scaled to the drawn SNR (with
+/// `centred`, its energy centre moved to the drawn centre).
+pub fn glitches_with(o: &GlitchOptions, shape: &mut ShapeSource<'_>) -> Result<Dataset, Error> {
     if !(o.snr.0 > 0.0 && o.snr.1 >= o.snr.0 && o.snr.1.is_finite()) {
         return Err(Error::Bind(format!("SNR range {}..{} must be positive and increasing", o.snr.0, o.snr.1)));
     }
@@ -303,6 +315,20 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
             }
         }
         if class > 0 {
+            if let Some(s) = shape(class)? {
+                let s = if o.centred { centred_at(&s, rng.random_range(0.4..=0.6)) } else { s };
+                let snr = rng.random_range(o.snr.0..=o.snr.1) * if class == 2 { o.koi_fish_loudness } else { 1.0 };
+                let norm = s.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if s.len() != samples || !(norm > 0.0 && norm.is_finite()) {
+                    return Err(Error::Bind(format!("a generated {} is not {samples} finite samples with energy", GLITCH_CLASSES[class])));
+                }
+                for (r, v) in row.iter_mut().zip(&s) {
+                    *r += snr * v / norm;
+                }
+                x.extend(row);
+                labels.push(class as f64);
+                continue;
+            }
             let mut settings = draw_shape(&mut rng, class);
             if o.centred {
                 let centre = rng.random_range(0.4..=0.6);
@@ -325,9 +351,45 @@ pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
     Ok(Dataset { arrays })
 }
 
+/// `s` shifted circularly so that its energy centre is at `at` seconds.
+fn centred_at(s: &[f64], at: f64) -> Vec<f64> {
+    let (middle, _) = crate::generator::learned::centred(s);
+    let by = ((at - 0.5) * 4096.0).round() as i64;
+    let n = middle.len() as i64;
+    (0..n).map(|i| middle[(i - by).rem_euclid(n) as usize]).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn generated_shapes_replace_the_formula_at_the_drawn_snr() {
+        // One Blip row: its noise, then its SNR, from the seeded generator.
+        let spike: Vec<f64> = (0..4096)
+            .map(|i| {
+                if i == 1000 {
+                    3.0
+                } else if i == 1001 {
+                    -4.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let o = GlitchOptions { n: 1, seed: 9, snr: (10.0, 20.0), class: Some(1), ..Default::default() };
+        let ds = glitches_with(&o, &mut |c| Ok((c == 1).then(|| spike.clone()))).unwrap();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(9);
+        let noise: Vec<f64> = (0..4096).map(|_| StandardNormal.sample(&mut rng)).collect();
+        let snr = rng.random_range(10.0..=20.0);
+        let row = ds.arrays["x"].row(0);
+        for i in 0..4096 {
+            assert!((row[i] - (noise[i] + snr * spike[i] / 5.0)).abs() < 1e-12, "sample {i}");
+        }
+        assert_eq!(ds.arrays["label"].data, [1.0]);
+        // A shape of the wrong length is an error, not a silent cut.
+        assert!(glitches_with(&o, &mut |_| Ok(Some(vec![1.0; 10]))).is_err());
+    }
 
     #[test]
     fn bursts_are_reproducible_balanced_and_at_the_drawn_snr() {
