@@ -9,12 +9,10 @@ use gwml::runtime::dataset::{self, Array, Dataset};
 use gwml::runtime::optim::{Method, OptimConfig, Schedule};
 use gwml::runtime::train::{EpochReport, TrainOptions, Trainer};
 use gwml::{Model, Value};
-use gwml_lab::generator::Generator;
+use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
 use gwml_lab::synth::{bursts, glitches_with, BurstOptions, GlitchOptions, GLITCH_CLASSES, KOI_FISH_LOUDNESS};
 
-/// Glitch shapes a `--generator` draws at a time.
-const GENERATOR_BATCH: usize = 256;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use std::time::Instant;
@@ -210,29 +208,7 @@ pub fn data(a: DataArgs, glitch: bool) -> Result<(), String> {
         }
         true => {
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("8..30"))?;
-            // Shapes of the generators' classes, drawn in batches as needed.
-            let mut sources: Vec<(usize, Generator, Vec<Vec<f64>>, u64)> = Vec::new();
-            for path in &a.generator {
-                let g =
-                    Generator::read(path)
-                        .map_err(|e| if e.starts_with("error:") { e } else { format!("error: {}: {e}", path.display()) })?;
-                let class = g.class()?;
-                if sources.iter().any(|s| s.0 == class) {
-                    return Err(format!("error: two --generator files draw {}: give one per class", GLITCH_CLASSES[class]));
-                }
-                sources.push((class, g, Vec::new(), 0));
-            }
-            let seed = a.seed;
-            let mut shape = |class: usize| -> Result<Option<Vec<f64>>, gwml::Error> {
-                let Some((_, g, buffer, batches)) = sources.iter_mut().find(|s| s.0 == class) else { return Ok(None) };
-                if buffer.is_empty() {
-                    let batch_seed = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ ((class as u64) << 32) ^ *batches;
-                    *buffer = g.sample(GENERATOR_BATCH, batch_seed).map_err(gwml::Error::Bind)?.rows;
-                    buffer.reverse();
-                    *batches += 1;
-                }
-                Ok(buffer.pop())
-            };
+            let mut shapes = GeneratorShapes::open(&a.generator, a.seed)?;
             let ds = glitches_with(
                 &GlitchOptions {
                     n: a.n,
@@ -243,7 +219,7 @@ pub fn data(a: DataArgs, glitch: bool) -> Result<(), String> {
                     class: a.class.map(|c| c.label()),
                     centred: a.centred,
                 },
-                &mut shape,
+                &mut |class| shapes.shape(class),
             )
             .map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;

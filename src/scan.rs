@@ -4,8 +4,9 @@
 use crate::commands::render;
 use crate::explain::Explained;
 use crate::strain_input::{Source, StrainInput, StrainRun as Run};
+use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
-use gwml_lab::strain::{simulate, write_truth, NoiseCurve, StrainOptions};
+use gwml_lab::strain::{simulate_with, write_truth, NoiseCurve, StrainOptions};
 use gwml_lab::synth::GlitchClass;
 use gwml_strain::classifier::{Classifier, Manifest};
 use gwml_strain::gwosc::{self, WriteOptions};
@@ -62,6 +63,12 @@ pub struct StrainArgs {
     /// Store the strain contiguous instead of gzip-compressed chunks.
     #[arg(long)]
     pub uncompressed: bool,
+    /// Draw the shapes of a class from a generator fitted by `gwml
+    /// generator fit` (the file says which class; its 4096 Hz whitened
+    /// glitches are coloured by the PSD) instead of its formula; repeat for
+    /// several classes.
+    #[arg(long, value_name = "GEN.json")]
+    pub generator: Vec<PathBuf>,
 }
 
 /// `gwml data strain`.
@@ -99,7 +106,8 @@ pub fn data_strain(a: StrainArgs) -> Result<(), String> {
     if a.ifo.is_empty() || !a.ifo.chars().all(|c| c.is_ascii_alphanumeric()) {
         return Err(format!("error: --ifo `{}` must be a detector name such as H1", a.ifo));
     }
-    let (series, injections) = simulate(&options).map_err(render)?;
+    let mut shapes = GeneratorShapes::open(&a.generator, a.seed)?;
+    let (series, injections) = simulate_with(&options, &mut |class| shapes.shape(class)).map_err(render)?;
     let write = WriteOptions { chunk: (!a.uncompressed).then_some(16_384), gzip_level: 4 };
     gwosc::write(&a.out, &series, &write).map_err(|e| format!("error: {e}"))?;
     println!(

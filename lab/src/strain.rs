@@ -14,6 +14,7 @@
 //! glitch datasets. Injection times: a Poisson process of the given rate,
 //! at least 2 s apart and 10 s from the ends, never in a gap.
 
+use crate::synth::ShapeSource;
 use crate::synth::{draw_shape, GLITCH_CLASSES};
 use gwml_runtime::noise::colored_noise;
 use gwml_runtime::spectrum::Spectrum;
@@ -72,6 +73,14 @@ pub struct Injection {
 
 /// Simulates the strain and lists what was injected.
 pub fn simulate(o: &StrainOptions) -> Result<(Series, Vec<Injection>), Error> {
+    simulate_with(o, &mut |_| Ok(None))
+}
+
+/// [`simulate`], with the shapes of some classes from `shape` (clean
+/// whitened rows of 4096 samples at 4096 Hz, from a fitted generator):
+/// each is coloured by the PSD, so that whitening gives it back, centred in
+/// its 1 s window and scaled to the drawn SNR.
+pub fn simulate_with(o: &StrainOptions, shape: &mut ShapeSource<'_>) -> Result<(Series, Vec<Injection>), Error> {
     if !(o.duration >= 32.0 && o.duration.fract() == 0.0 && o.duration <= 1e6) {
         return Err(Error::Bind(format!("--duration {} must be a whole number of seconds from 32 to 1e6", o.duration)));
     }
@@ -96,7 +105,7 @@ pub fn simulate(o: &StrainOptions) -> Result<(Series, Vec<Injection>), Error> {
     let samples = noise(n, fs, &curve, rng.random())?;
     let mut series =
         Series { detector: o.ifo.clone(), gps_start: o.gps_start, sample_rate: fs, samples, dq: None, source: "simulated".into() };
-    let injections = inject(&mut series, o, &curve, &mut rng)?;
+    let injections = inject(&mut series, o, &curve, &mut rng, shape)?;
     let seconds = o.duration as usize;
     let mut dq = vec![127u32; seconds];
     for &(start, len) in &o.gaps {
@@ -147,7 +156,13 @@ fn noise(n: usize, fs: f64, curve: &Spectrum, seed: u64) -> Result<Vec<f64>, Err
 }
 
 /// Draws injection times and signals and adds them to the samples.
-fn inject<R: Rng>(series: &mut Series, o: &StrainOptions, curve: &Spectrum, rng: &mut R) -> Result<Vec<Injection>, Error> {
+fn inject<R: Rng>(
+    series: &mut Series,
+    o: &StrainOptions,
+    curve: &Spectrum,
+    rng: &mut R,
+    shape: &mut ShapeSource<'_>,
+) -> Result<Vec<Injection>, Error> {
     if o.glitch_rate == 0.0 {
         return Ok(Vec::new());
     }
@@ -157,7 +172,8 @@ fn inject<R: Rng>(series: &mut Series, o: &StrainOptions, curve: &Spectrum, rng:
     let fs = series.sample_rate;
     let window = fs as usize;
     let psd_1hz: Vec<f64> = (0..=window / 2).map(|k| curve.psd_at(k as f64)).collect();
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(window);
+    let mut planner = RealFftPlanner::<f64>::new();
+    let (fft, ifft) = (planner.plan_fft_forward(window), planner.plan_fft_inverse(window));
     let mean_gap = 60.0 / o.glitch_rate;
     let mut injections = Vec::new();
     let mut t = 10.0;
@@ -169,10 +185,11 @@ fn inject<R: Rng>(series: &mut Series, o: &StrainOptions, curve: &Spectrum, rng:
             break;
         }
         let class = o.classes[rng.random_range(0..o.classes.len())];
-        let mut params = draw_shape(rng, class).to_vec();
+        let generated = shape(class)?;
+        let mut params = if generated.is_some() { Vec::new() } else { draw_shape(rng, class).to_vec() };
         let snr = rng.random_range(o.snr.0..=o.snr.1);
         // Glitches centred in their 1 s window; a chirp merges at `tc`.
-        let centre = if class == 5 {
+        let centre = if class == 5 && generated.is_none() {
             params.iter().find(|p| p.0 == "tc").map_or(0.9, |p| p.1)
         } else {
             params.iter_mut().filter(|p| p.0 == "t0").for_each(|p| p.1 = 0.5);
@@ -182,12 +199,18 @@ fn inject<R: Rng>(series: &mut Series, o: &StrainOptions, curve: &Spectrum, rng:
         if o.gaps.iter().any(|&(s, l)| t + 1.0 > s && t - 1.0 < s + l) {
             continue;
         }
-        run.param("class", class as f64)?;
-        for (name, value) in &params {
-            run.param(name, *value)?;
-        }
-        let Value::RealArray(h) = run.forward()?.value("h")?.clone() else {
-            return Err(Error::Bind("the glitch strain scene's output is not a real array".into()));
+        let h = match &generated {
+            Some(w) => coloured(w, &psd_1hz, fs, (&fft, &ifft))?,
+            None => {
+                run.param("class", class as f64)?;
+                for (name, value) in &params {
+                    run.param(name, *value)?;
+                }
+                let Value::RealArray(h) = run.forward()?.value("h")?.clone() else {
+                    return Err(Error::Bind("the glitch strain scene's output is not a real array".into()));
+                };
+                h
+            }
         };
         let mut input: Vec<f64> = h.iter().map(|v| v * 1e-21).collect();
         let mut spectrum = fft.make_output_vec();
@@ -204,6 +227,30 @@ fn inject<R: Rng>(series: &mut Series, o: &StrainOptions, curve: &Spectrum, rng:
         injections.push(Injection { gps_time: series.gps_start + window_start as f64 / fs + centre, class, snr, params });
     }
     Ok(injections)
+}
+
+/// A generated whitened glitch `w` (one 1 s window at `fs`, which must be
+/// its 4096 Hz) as strain in units of 1e-21: centred on its energy, then
+/// each bin from 20 Hz to 2 kHz times √(S(f)·fs/2), the inverse of the
+/// whitening (`std::detector::whiten`); zero outside that band.
+fn coloured(
+    w: &[f64],
+    psd_1hz: &[f64],
+    fs: f64,
+    (fft, ifft): (&std::sync::Arc<dyn realfft::RealToComplex<f64>>, &std::sync::Arc<dyn realfft::ComplexToReal<f64>>),
+) -> Result<Vec<f64>, Error> {
+    if w.len() != fs as usize {
+        return Err(Error::Bind(format!("a generator's glitches are {} samples per second, the strain {fs}", w.len())));
+    }
+    let (mut input, _) = crate::generator::learned::centred(w);
+    let mut spectrum = fft.make_output_vec();
+    fft.process(&mut input, &mut spectrum).map_err(|e| Error::Bind(format!("FFT failed: {e}")))?;
+    for (k, x) in spectrum.iter_mut().enumerate() {
+        *x *= if (20..=2000).contains(&k) { (psd_1hz[k] * fs / 2.0).sqrt() / 1e-21 / w.len() as f64 } else { 0.0 };
+    }
+    let mut h = ifft.make_output_vec();
+    ifft.process(&mut spectrum, &mut h).map_err(|e| Error::Bind(format!("inverse FFT failed: {e}")))?;
+    Ok(h)
 }
 
 /// Writes the injections as CSV: `gps_time,label,snr` then the shape params.

@@ -171,6 +171,48 @@ impl Generator {
     }
 }
 
+/// Glitch shapes for `gwml data glitch|strain --generator`: one fitted
+/// generator per class, drawn in batches as rows are needed.
+pub struct GeneratorShapes {
+    sources: Vec<(usize, Generator, Vec<Vec<f64>>, u64)>,
+    seed: u64,
+}
+
+/// Glitch shapes a [`GeneratorShapes`] draws at a time.
+const SHAPE_BATCH: usize = 256;
+
+impl GeneratorShapes {
+    /// Reads the generator files (at most one per class); `seed` seeds the
+    /// draws.
+    pub fn open(paths: &[PathBuf], seed: u64) -> Result<GeneratorShapes, String> {
+        let mut sources: Vec<(usize, Generator, Vec<Vec<f64>>, u64)> = Vec::new();
+        for path in paths {
+            let g =
+                Generator::read(path).map_err(|e| if e.starts_with("error:") { e } else { format!("error: {}: {e}", path.display()) })?;
+            let class = g.class()?;
+            if sources.iter().any(|s| s.0 == class) {
+                return Err(format!("error: two --generator files draw {}: give one per class", GLITCH_CLASSES[class]));
+            }
+            sources.push((class, g, Vec::new(), 0));
+        }
+        Ok(GeneratorShapes { sources, seed })
+    }
+
+    /// The next clean whitened shape of `class` (4096 samples at 4096 Hz),
+    /// or `None` when no generator draws that class.
+    pub fn shape(&mut self, class: usize) -> Result<Option<Vec<f64>>, gwml_runtime::Error> {
+        let seed = self.seed;
+        let Some((_, g, buffer, batches)) = self.sources.iter_mut().find(|s| s.0 == class) else { return Ok(None) };
+        if buffer.is_empty() {
+            let batch_seed = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ ((class as u64) << 32) ^ *batches;
+            *buffer = g.sample(SHAPE_BATCH, batch_seed).map_err(gwml_runtime::Error::Bind)?.rows;
+            buffer.reverse();
+            *batches += 1;
+        }
+        Ok(buffer.pop())
+    }
+}
+
 /// Example glitches: whitened rows as a detector sees them, and, when the
 /// file holds them, the same glitches without noise.
 pub struct Examples {
