@@ -83,7 +83,7 @@ fn the_two_sample_test_tells_shapes_apart_and_not_one_set_from_itself() {
 /// has. What it reaches today (150 epochs on 350 examples at SNR 15–30):
 /// its training loss explains about half of the examples' signal energy,
 /// and the critic tells its draws from held-out ringdowns less well than it
-/// tells blips from them at SNR 20 (0.84 against 0.94), barely at SNR 40
+/// tells blips from them at SNR 20 (0.83 against 0.94), barely at SNR 40
 /// (0.92 against 0.95). Issue #30's target is 0.60 at SNR 40; this test holds
 /// the ground gained, not the target.
 #[test]

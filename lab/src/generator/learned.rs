@@ -10,8 +10,8 @@
 //! likelihood ½‖x − decoder(z)‖². The generator keeps the decoder's weights
 //! and the examples' centre times.
 //!
-//! Sampling: z from a Gaussian fitted to the encoder's means of the
-//! training examples, through the compiled `sample` scene (the decoder
+//! Sampling: z from the encoder's posterior of a random training example
+//! (the aggregate posterior), through the compiled `sample` scene (the decoder
 //! alone), each draw shifted to a centre time drawn from the examples'.
 
 use super::{quantiles, Draws, GeneratorFitArgs, SAMPLES, SAMPLE_RATE};
@@ -55,19 +55,22 @@ pub struct LearnedGenerator {
     pub weights: Vec<(String, Vec<f64>)>,
     /// The examples' centre times in seconds from the start of their row.
     pub centres: Vec<f64>,
-    /// Mean of the Gaussian over the latent space that draws are taken
-    /// from: fitted to the encoder's means of the training examples, which
-    /// fill the space the decoder learned better than the prior N(0, I)
-    /// (Ghosh et al. 2020, "From variational to deterministic autoencoders",
-    /// arXiv:1903.12436, ex-post density estimation).
-    pub latent_mean: Vec<f64>,
-    /// Its covariance's lower Cholesky factor, row-major [`LATENT`]².
-    pub latent_cholesky: Vec<f64>,
+    /// The encoder's posterior over the latent space for each training
+    /// example: its mean and standard deviations ([`LATENT`] each). Draws
+    /// come from their mixture, the aggregate posterior, which is where the
+    /// decoder was trained (sampling the prior N(0, I) instead, or one
+    /// Gaussian fitted to the means, leaves holes: Ghosh et al. 2020,
+    /// arXiv:1903.12436).
+    pub posteriors: Vec<Posterior>,
     /// Training epochs and the last epoch's mean loss.
     pub epochs: usize,
     /// Mean negative ELBO per example after the last epoch.
     pub final_loss: f64,
 }
+
+/// The encoder's diagonal Gaussian posterior for one example: means and
+/// standard deviations over the latent space.
+pub type Posterior = (Vec<f64>, Vec<f64>);
 
 /// Settings of [`fit`].
 #[derive(Clone, Copy, Debug)]
@@ -168,38 +171,32 @@ pub fn fit(
     let mut trainer = Trainer::new(&scene, options)?;
     let reports = trainer.fit(&data, None, |_, _| {}, on_epoch)?;
     let all = trainer.weights();
-    let (latent_mean, latent_cholesky) = latent_gaussian(&scene, &all, &rows)?;
+    let posteriors = latent_posteriors(&scene, &all, &rows)?;
     let weights = all.into_iter().filter(|(name, _)| name.starts_with("decoder.")).collect();
     let final_loss = reports.last().map_or(f64::NAN, |r| r.train_loss);
-    Ok((LearnedGenerator { class, weights, centres, latent_mean, latent_cholesky, epochs: o.epochs, final_loss }, reports))
+    Ok((LearnedGenerator { class, weights, centres, posteriors, epochs: o.epochs, final_loss }, reports))
 }
 
-/// The mean and the Cholesky factor of the covariance of the encoder's
-/// latent means over `rows` (with 1e-6 added to the diagonal).
-fn latent_gaussian(scene: &gwml_runtime::Scene, weights: &[(String, Vec<f64>)], rows: &[Vec<f64>]) -> Result<(Vec<f64>, Vec<f64>), Error> {
+/// The encoder's posterior (means, standard deviations) for each of `rows`.
+fn latent_posteriors(scene: &gwml_runtime::Scene, weights: &[(String, Vec<f64>)], rows: &[Vec<f64>]) -> Result<Vec<Posterior>, Error> {
     let mut run = scene.bind();
     for (name, w) in weights {
         run.input_real(name, w)?;
     }
-    let mut means = Vec::with_capacity(rows.len());
+    let mut out = Vec::with_capacity(rows.len());
     for x in rows {
         run.input_real("x", x)?;
-        match run.forward()?.value("latent_mean")? {
-            Value::RealArray(m) => means.push(m.clone()),
-            _ => return Err(Error::Bind("the VAE's `latent_mean` is not a real array".into())),
+        let o = run.forward()?;
+        match (o.value("latent_mean")?, o.value("latent_logvar")?) {
+            (Value::RealArray(m), Value::RealArray(lv)) => out.push((m.clone(), lv.iter().map(|v| (0.5 * v).exp()).collect())),
+            _ => return Err(Error::Bind("the VAE's latent mean and log-variance are not real arrays".into())),
         }
     }
-    let n = means.len() as f64;
-    let mean: Vec<f64> = (0..LATENT).map(|j| means.iter().map(|m| m[j]).sum::<f64>() / n).collect();
-    let cov = nalgebra::DMatrix::from_fn(LATENT, LATENT, |i, j| {
-        means.iter().map(|m| (m[i] - mean[i]) * (m[j] - mean[j])).sum::<f64>() / (n - 1.0).max(1.0) + if i == j { 1e-6 } else { 0.0 }
-    });
-    let l = cov.cholesky().ok_or_else(|| Error::Bind("the latent means' covariance is not positive definite".into()))?.l();
-    Ok((mean, (0..LATENT).flat_map(|i| (0..LATENT).map(move |j| (i, j))).map(|(i, j)| l[(i, j)]).collect()))
+    Ok(out)
 }
 
 impl LearnedGenerator {
-    /// Draws `n` glitches: the decoder at latents from the fitted Gaussian, each
+    /// Draws `n` glitches: the decoder at latents from the aggregate posterior, each
     /// shifted to a centre time drawn from the examples'. The per-row values
     /// are `t0` (the centre, s) and `snr` (the draw's norm).
     pub fn sample(&self, n: usize, seed: u64) -> Result<Draws, Error> {
@@ -208,10 +205,8 @@ impl LearnedGenerator {
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
         let plan: Vec<(Vec<f64>, f64)> = (0..n)
             .map(|_| {
-                let e: Vec<f64> = (0..LATENT).map(|_| Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect();
-                let z = (0..LATENT)
-                    .map(|i| self.latent_mean[i] + (0..=i).map(|j| self.latent_cholesky[i * LATENT + j] * e[j]).sum::<f64>())
-                    .collect();
+                let (mean, sd) = &self.posteriors[rng.random_range(0..self.posteriors.len())];
+                let z = mean.iter().zip(sd).map(|(m, s)| m + s * Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect();
                 (z, self.centres[rng.random_range(0..self.centres.len())])
             })
             .collect();
@@ -262,8 +257,8 @@ impl LearnedGenerator {
             "epochs": self.epochs,
             "final_loss": self.final_loss,
             "centres": self.centres,
-            "latent_mean": self.latent_mean,
-            "latent_cholesky": self.latent_cholesky,
+            "posterior_means": self.posteriors.iter().map(|p| &p.0).collect::<Vec<_>>(),
+            "posterior_sds": self.posteriors.iter().map(|p| &p.1).collect::<Vec<_>>(),
         });
         let text = serde_json::to_string_pretty(&json).map_err(|e| format!("error: {e}"))?;
         std::fs::write(path, text + "\n").map_err(|e| format!("error: cannot write {}: {e}", path.display()))
@@ -283,17 +278,26 @@ impl LearnedGenerator {
         if centres.is_empty() {
             return Err(bad("no centres"));
         }
-        let numbers = |key: &str, len: usize| -> Result<Vec<f64>, String> {
-            let xs: Vec<f64> = v[key].as_array().ok_or_else(|| bad(&format!("no `{key}`")))?.iter().filter_map(|x| x.as_f64()).collect();
-            if xs.len() != len || xs.iter().any(|x| !x.is_finite()) {
-                return Err(bad(&format!("`{key}` must hold {len} finite numbers")));
-            }
-            Ok(xs)
+        let rows = |key: &str| -> Result<Vec<Vec<f64>>, String> {
+            let rows = v[key].as_array().ok_or_else(|| bad(&format!("no `{key}`")))?;
+            rows.iter()
+                .map(|r| {
+                    let xs: Vec<f64> = r.as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
+                    if xs.len() != LATENT || xs.iter().any(|x| !x.is_finite()) {
+                        return Err(bad(&format!("each row of `{key}` must hold {LATENT} finite numbers")));
+                    }
+                    Ok(xs)
+                })
+                .collect()
         };
         let file = v["weights"].as_str().ok_or_else(|| bad("no `weights` file"))?;
         let weights_path = path.parent().unwrap_or(Path::new(".")).join(file);
         let ck = checkpoint::load(&weights_path).map_err(|e| e.render(false))?;
-        let (latent_mean, latent_cholesky) = (numbers("latent_mean", LATENT)?, numbers("latent_cholesky", LATENT * LATENT)?);
+        let (means, sds) = (rows("posterior_means")?, rows("posterior_sds")?);
+        if means.is_empty() || means.len() != sds.len() {
+            return Err(bad("`posterior_means` and `posterior_sds` must be non-empty and as long as each other"));
+        }
+        let posteriors = means.into_iter().zip(sds).collect();
         let weights: Vec<(String, Vec<f64>)> = ck.tensors.into_iter().map(|t| (t.name, t.data)).collect();
         // The weights must fit the decoder gwml embeds.
         let model = vae_model().map_err(render)?;
@@ -316,8 +320,7 @@ impl LearnedGenerator {
             class,
             weights,
             centres,
-            latent_mean,
-            latent_cholesky,
+            posteriors,
             epochs: v["epochs"].as_u64().unwrap_or(0) as usize,
             final_loss: v["final_loss"].as_f64().unwrap_or(f64::NAN),
         })

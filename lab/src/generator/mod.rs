@@ -320,7 +320,9 @@ const REALISM_SNRS: [f64; 2] = [20.0, 40.0];
 pub fn sample_command(a: GeneratorSampleArgs) -> Result<(), String> {
     let g =
         Generator::read(&a.model).map_err(|e| if e.starts_with("error:") { e } else { format!("error: {}: {e}", a.model.display()) })?;
+    let start = std::time::Instant::now();
     let Draws { mut rows, names, params: draws } = g.sample(a.n, a.seed).map_err(|e| format!("error: {e}"))?;
+    let seconds = start.elapsed().as_secs_f64();
     if a.noise {
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(a.seed.wrapping_add(1));
         for row in &mut rows {
@@ -334,7 +336,9 @@ pub fn sample_command(a: GeneratorSampleArgs) -> Result<(), String> {
     }
     dataset::write_npz(&a.out, &Dataset { arrays }).map_err(render)?;
     println!(
-        "wrote {}: x ({} × {SAMPLES}, whitened, 4096 Hz{}), and the drawn {}",
+        "drew {} glitches in {seconds:.2} s ({:.0} per second); wrote {}: x ({} × {SAMPLES}, whitened, 4096 Hz{}), and the drawn {}",
+        a.n,
+        a.n as f64 / seconds.max(1e-9),
         a.out.display(),
         a.n,
         if a.noise { ", in white noise" } else { "" },
