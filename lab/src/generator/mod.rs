@@ -309,6 +309,11 @@ pub fn fit_command(a: GeneratorFitArgs) -> Result<(), String> {
             line += &format!(" SNR {snr}: {acc:.3};");
         }
         println!("{}", line.trim_end_matches(';'));
+        println!("{:<20} {:>30} {:>30} {:>6}", "property", "held out: median [5%, 95%]", "draws: median [5%, 95%]", "KS");
+        for d in realism::feature_distances(held_out, &draws) {
+            let q = |x: [f64; 3]| format!("{:.4} [{:.4}, {:.4}]", x[1], x[0], x[2]);
+            println!("{:<20} {:>30} {:>30} {:>6.3}", d.name, q(d.quantiles[0]), q(d.quantiles[1]), d.ks);
+        }
     }
     Ok(())
 }
