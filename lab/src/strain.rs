@@ -253,17 +253,52 @@ fn coloured(
     Ok(h)
 }
 
-/// Writes the injections as CSV: `gps_time,label,snr` then the shape params.
+/// Writes the injections as CSV: `gps_time,label,snr`, then one column per
+/// shape param of any injected class (in order of first appearance), empty
+/// where an injection's class has no such param.
 pub fn write_truth(path: &std::path::Path, injections: &[Injection]) -> Result<(), Error> {
+    std::fs::write(path, truth_csv(injections)).map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))
+}
+
+/// The text of [`write_truth`].
+fn truth_csv(injections: &[Injection]) -> String {
     use std::fmt::Write;
-    let names: Vec<&str> = injections.first().map_or(Vec::new(), |i| i.params.iter().map(|p| p.0).collect());
+    let mut names: Vec<&str> = Vec::new();
+    for p in injections.iter().flat_map(|i| &i.params) {
+        if !names.contains(&p.0) {
+            names.push(p.0);
+        }
+    }
     let mut text = String::from("gps_time,label,snr");
     names.iter().for_each(|n| text.push_str(&format!(",{n}")));
     text.push('\n');
     for i in injections {
         let _ = write!(text, "{:.6},{},{:.4}", i.gps_time, GLITCH_CLASSES[i.class], i.snr);
-        i.params.iter().for_each(|p| text.push_str(&format!(",{}", p.1)));
+        for n in &names {
+            text.push(',');
+            if let Some(p) = i.params.iter().find(|p| p.0 == *n) {
+                text.push_str(&p.1.to_string());
+            }
+        }
         text.push('\n');
     }
-    std::fs::write(path, text).map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn truth_columns_line_up_across_classes() {
+        let blip = Injection { gps_time: 10.0, class: 1, snr: 12.0, params: vec![("f0", 100.0), ("q", 4.0)] };
+        let whistle = Injection { gps_time: 20.0, class: 3, snr: 15.0, params: vec![("f_min", 500.0), ("q", 9.0)] };
+        let generated = Injection { gps_time: 30.0, class: 1, snr: 20.0, params: vec![] };
+        let text = truth_csv(&[blip, whistle, generated]);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], "gps_time,label,snr,f0,q,f_min");
+        assert_eq!(lines[1], "10.000000,Blip,12.0000,100,4,");
+        assert_eq!(lines[2], "20.000000,Whistle,15.0000,,9,500");
+        assert_eq!(lines[3], "30.000000,Blip,20.0000,,,");
+    }
 }
