@@ -479,7 +479,23 @@ pub struct TradeoffArgs {
     pub plot: Option<PathBuf>,
 }
 
+/// A reader that stops early (`gwml ... | head`) closes the pipe; printing
+/// then fails with a broken pipe, which `println!` turns into a panic. Exit
+/// quietly instead, with the status of a process a SIGPIPE ended (141).
+fn exit_quietly_on_broken_pipe() {
+    let report = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let message = payload.downcast_ref::<String>().map(String::as_str).or_else(|| payload.downcast_ref::<&str>().copied());
+        if message.is_some_and(|m| m.contains("Broken pipe")) {
+            std::process::exit(141);
+        }
+        report(info);
+    }));
+}
+
 fn main() -> ExitCode {
+    exit_quietly_on_broken_pipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Compile(a) => commands::compile(a),

@@ -166,3 +166,24 @@ fn emit_adjoint_marks_the_values_mixed_precision_keeps_in_f64() {
     let (ok, out, _) = gwml(&["compile", "examples/chirp_fit.gw", "--precision", "f32", "--emit", "adjoint"]);
     assert!(ok && !out.contains(" f64 = "), "f32 marks nothing:\n{out}");
 }
+
+/// `gwml ... | head` that stops reading early: a broken pipe ends gwml
+/// quietly (status 141, as SIGPIPE would), never with a panic.
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    let dir = std::env::temp_dir().join(format!("gwml-pipe-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_gwml"))
+        .args(["data", "glitch", "--n", "20", "--out"])
+        .arg(dir.join("g.npz"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(141), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
