@@ -353,10 +353,8 @@ pub fn glitches_with(o: &GlitchOptions, shape: &mut ShapeSource<'_>) -> Result<D
 
 /// `s` shifted circularly so that its energy centre is at `at` seconds.
 fn centred_at(s: &[f64], at: f64) -> Vec<f64> {
-    let (middle, _) = crate::generator::learned::centred(s);
-    let by = ((at - 0.5) * 4096.0).round() as i64;
-    let n = middle.len() as i64;
-    (0..n).map(|i| middle[(i - by).rem_euclid(n) as usize]).collect()
+    use crate::generator::learned::{centred, roll};
+    roll(&centred(s).0, ((at - 0.5) * 4096.0).round() as i64)
 }
 
 #[cfg(test)]

@@ -118,6 +118,15 @@ fn sum_sg_n(f0: f64, n: &[f64]) -> f64 {
         .sum()
 }
 
+/// One example, `x` = 400 ones, and plain SGD of rate 1: one step moves
+/// each weight by minus its gradient.
+fn one_example_of_ones() -> (gwml_runtime::dataset::Dataset, OptimConfig) {
+    let mut arrays = std::collections::BTreeMap::new();
+    arrays.insert("x".to_string(), gwml_runtime::dataset::Array::new(vec![1, 400], vec![1.0; 400]).unwrap());
+    let sgd = OptimConfig { method: Method::sgd(0.0), lr: 1.0, schedule: Schedule::Constant, clip_norm: None };
+    (gwml_runtime::dataset::Dataset { arrays }, sgd)
+}
+
 #[test]
 fn dropout_masks_apply_while_training_and_not_in_evaluation() {
     // loss = Σ dropout(w, 0.5) · x with x = 1: one SGD step of rate 1 from
@@ -130,12 +139,7 @@ fn dropout_masks_apply_while_training_and_not_in_evaluation() {
     assert!(
         matches!(scene.ir().inputs.iter().find(|i| i.name == "net.dropout1").unwrap().role, gwml_compiler::ir::InputRole::DropoutMask(r) if r == 0.5)
     );
-    let data = {
-        let mut arrays = std::collections::BTreeMap::new();
-        arrays.insert("x".to_string(), gwml_runtime::dataset::Array::new(vec![1, 400], vec![1.0; 400]).unwrap());
-        gwml_runtime::dataset::Dataset { arrays }
-    };
-    let sgd = OptimConfig { method: Method::sgd(0.0), lr: 1.0, schedule: Schedule::Constant, clip_norm: None };
+    let (data, sgd) = one_example_of_ones();
     let mut trainer = Trainer::new(&scene, TrainOptions { batch: 1, threads: 1, optim: sgd, ..options(1, 1.0) }).unwrap();
     trainer.fit(&data, None, |_, _| {}, |_| {}).unwrap();
     let w = &trainer.weights()[0].1;
@@ -156,12 +160,7 @@ fn randn_draws_standard_normal_noise_while_training_and_zeros_in_evaluation() {
     let model = Model::from_source("noise.gw", src).unwrap();
     let scene = model.scene(None).unwrap();
     assert_eq!(scene.ir().inputs.iter().find(|i| i.name == "net.noise1").unwrap().role, gwml_compiler::ir::InputRole::Noise);
-    let data = {
-        let mut arrays = std::collections::BTreeMap::new();
-        arrays.insert("x".to_string(), gwml_runtime::dataset::Array::new(vec![1, 400], vec![1.0; 400]).unwrap());
-        gwml_runtime::dataset::Dataset { arrays }
-    };
-    let sgd = OptimConfig { method: Method::sgd(0.0), lr: 1.0, schedule: Schedule::Constant, clip_norm: None };
+    let (data, sgd) = one_example_of_ones();
     let mut trainer = Trainer::new(&scene, TrainOptions { batch: 1, threads: 1, optim: sgd, ..options(1, 1.0) }).unwrap();
     trainer.fit(&data, None, |_, _| {}, |_| {}).unwrap();
     let first = trainer.weights()[0].1.clone();

@@ -116,7 +116,7 @@ pub fn energy_centre(x: &[f64]) -> f64 {
 }
 
 /// `x` shifted circularly by `by` samples (positive: later).
-fn roll(x: &[f64], by: i64) -> Vec<f64> {
+pub fn roll(x: &[f64], by: i64) -> Vec<f64> {
     let n = x.len() as i64;
     (0..n).map(|i| x[(i - by).rem_euclid(n) as usize]).collect()
 }

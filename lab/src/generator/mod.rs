@@ -143,15 +143,16 @@ pub enum Generator {
 impl Generator {
     /// Reads a generator written by `gwml generator fit` (a file without a
     /// `kind` is parametric, as every file was before the learned kind).
+    /// Errors are one line naming the file.
     pub fn read(path: &Path) -> Result<Generator, String> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
-        let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("error: {}: {e}", path.display()))?;
-        let g = match json["kind"].as_str() {
-            Some("learned") => Generator::Learned(learned::LearnedGenerator::from_json(&json, path)?),
-            None | Some("parametric") => Generator::Parametric(parametric::Generator::from_json(&json)?),
-            Some(other) => return Err(format!("unknown generator kind `{other}`")),
-        };
-        Ok(g)
+        let parsed =
+            serde_json::from_str::<serde_json::Value>(&text).map_err(|e| e.to_string()).and_then(|json| match json["kind"].as_str() {
+                Some("learned") => learned::LearnedGenerator::from_json(&json, path).map(Generator::Learned),
+                None | Some("parametric") => parametric::Generator::from_json(&json).map(Generator::Parametric),
+                Some(other) => Err(format!("unknown generator kind `{other}`")),
+            });
+        parsed.map_err(|e| format!("error: {}: {e}", path.display()))
     }
 
     /// The glitch class it draws.
@@ -187,8 +188,7 @@ impl GeneratorShapes {
     pub fn open(paths: &[PathBuf], seed: u64) -> Result<GeneratorShapes, String> {
         let mut sources: Vec<(usize, Generator, Vec<Vec<f64>>, u64)> = Vec::new();
         for path in paths {
-            let g =
-                Generator::read(path).map_err(|e| if e.starts_with("error:") { e } else { format!("error: {}: {e}", path.display()) })?;
+            let g = Generator::read(path)?;
             let class = g.class()?;
             if sources.iter().any(|s| s.0 == class) {
                 return Err(format!("error: two --generator files draw {}: give one per class", GLITCH_CLASSES[class]));
@@ -323,8 +323,7 @@ const REALISM_SNRS: [f64; 2] = [20.0, 40.0];
 
 /// `gwml generator sample`.
 pub fn sample_command(a: GeneratorSampleArgs) -> Result<(), String> {
-    let g =
-        Generator::read(&a.model).map_err(|e| if e.starts_with("error:") { e } else { format!("error: {}: {e}", a.model.display()) })?;
+    let g = Generator::read(&a.model)?;
     let start = std::time::Instant::now();
     let Draws { mut rows, names, params: draws } = g.sample(a.n, a.seed).map_err(|e| format!("error: {e}"))?;
     let seconds = start.elapsed().as_secs_f64();

@@ -9,7 +9,7 @@
 //! set away.
 
 use super::learned::centred;
-use super::{SAMPLES, SAMPLE_RATE};
+use super::{quantiles, SAMPLES, SAMPLE_RATE};
 use gwml_runtime::dataset::{Array, Dataset};
 use gwml_runtime::optim::{Method, OptimConfig, Schedule};
 use gwml_runtime::train::{TrainOptions, Trainer};
@@ -218,8 +218,7 @@ pub fn feature_distances(a: &[Vec<f64>], b: &[Vec<f64>]) -> Vec<FeatureDistance>
             let mut xb: Vec<f64> = pb.iter().map(|p| p[j]).collect();
             xa.sort_by(f64::total_cmp);
             xb.sort_by(f64::total_cmp);
-            let q =
-                |v: &[f64]| [0.05, 0.5, 0.95].map(|f| v.get(((v.len() as f64 - 1.0) * f).round() as usize).copied().unwrap_or(f64::NAN));
+            let q = |v: &[f64]| <[f64; 3]>::try_from(quantiles(v, &[0.05, 0.5, 0.95])).expect("three fractions");
             FeatureDistance { name: PROPERTY_NAMES[j], quantiles: [q(&xa), q(&xb)], ks: kolmogorov_smirnov(&xa, &xb) }
         })
         .collect()
