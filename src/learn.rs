@@ -11,7 +11,7 @@ use gwml::runtime::train::{EpochReport, TrainOptions, Trainer};
 use gwml::{Model, Value};
 use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
-use gwml_lab::synth::{bursts, glitches_with, BurstOptions, GlitchOptions, GLITCH_CLASSES, KOI_FISH_LOUDNESS};
+use gwml_lab::synth::{bursts, glitches_with, BurstOptions, GlitchOptions, CENTRED, GLITCH_CLASSES};
 
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
@@ -186,8 +186,8 @@ pub fn data(a: DataArgs, glitch: bool) -> Result<(), String> {
             if a.class.is_some() {
                 return Err("error: --class applies to glitch data only".into());
             }
-            if a.koi_fish_loudness.is_some() {
-                return Err("error: --koi-fish-loudness applies to glitch data only".into());
+            if a.ideal_noise {
+                return Err("error: --ideal-noise applies to glitch data only".into());
             }
             if a.centred {
                 return Err("error: --centred applies to glitch data only".into());
@@ -207,17 +207,17 @@ pub fn data(a: DataArgs, glitch: bool) -> Result<(), String> {
             );
         }
         true => {
-            let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("8..30"))?;
+            let snr = a.snr.as_deref().map(parse_range).transpose()?;
             let mut shapes = GeneratorShapes::open(&a.generator, a.seed)?;
             let ds = glitches_with(
                 &GlitchOptions {
                     n: a.n,
                     seed: a.seed,
-                    snr: (lo, hi),
-                    koi_fish_loudness: a.koi_fish_loudness.unwrap_or(KOI_FISH_LOUDNESS),
+                    snr,
                     psd_knee: a.psd_knee,
                     class: a.class.map(|c| c.label()),
-                    centred: a.centred,
+                    position: if a.centred { CENTRED } else { GlitchOptions::default().position },
+                    ideal_noise: a.ideal_noise,
                 },
                 &mut |class| shapes.shape(class),
             )

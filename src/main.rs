@@ -369,27 +369,29 @@ pub struct DataArgs {
     /// Seed (use different seeds for training, validation and test sets).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Range of the optimal signal-to-noise ratio [default: 6..15 for bursts,
-    /// 8..30 for glitch, where Koi Fish are drawn louder: see --koi-fish-loudness].
+    /// Range of the optimal signal-to-noise ratio [default: 6..15 for bursts;
+    /// for glitch, each class's own range after Gravity Spy (Blip 7.5-100,
+    /// Koi Fish 25-400, ...), drawn log-uniformly; a range given here is
+    /// drawn uniformly for every class].
     #[arg(long)]
     pub snr: Option<String>,
-    /// glitch only: Koi Fish are drawn this many times louder than the --snr
-    /// range (Gravity Spy finds them 6-8 times louder than Blips); 1 draws
-    /// every class from the same range [default: 3].
-    #[arg(long, value_name = "FACTOR")]
-    pub koi_fish_loudness: Option<f64>,
     /// glitch only: shift the noise's PSD away from the modelled one by a
     /// factor 1 + (KNEE/f)² over 20 Hz–2 kHz (excess low-frequency noise),
     /// for generalisation tests [default: 0, the modelled PSD].
     #[arg(long, value_name = "HZ", default_value_t = 0.0)]
     pub psd_knee: f64,
-    /// glitch only: draw only this class [default: all six, uniformly].
+    /// glitch only: draw only this class [default: all eight, uniformly].
     #[arg(long, value_enum)]
     pub class: Option<GlitchClass>,
-    /// glitch only: centre signals as a scan's trigger window does (glitch
-    /// centres and chirp mergers at 0.4-0.6 s), for classifiers `gwml scan` runs.
+    /// glitch only: centre signals as a scan's trigger window does (energy
+    /// centres at 0.4-0.6 s instead of 0.3-0.7 s), for classifiers `gwml scan` runs.
     #[arg(long)]
     pub centred: bool,
+    /// glitch only: unit-variance Gaussian noise alone, without the flaws of
+    /// whitened real strain (a misestimated PSD, residual 60 Hz and violin
+    /// lines, weak background transients).
+    #[arg(long)]
+    pub ideal_noise: bool,
     /// glitch only: draw the shapes of a class from a generator fitted by
     /// `gwml generator fit` (the file says which class) instead of its
     /// formula, each scaled to the --snr range; repeat for several classes.

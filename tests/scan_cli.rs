@@ -215,7 +215,9 @@ fn the_loudest_tile_is_on_the_glitch_and_bad_times_are_errors() {
     let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
     let family = header.iter().position(|h| *h == "family").expect("a family column");
     let params = header.iter().position(|h| *h == "family_params").expect("a params column");
-    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    // Triggers within 16 s of the gap cannot be explained (their 32 s of
+    // data reach it): each row says so, and the rest are judged.
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).filter(|l| !l.contains("missing data")).map(|l| l.split(',').collect()).collect();
     assert!(!rows.is_empty());
     let explained = rows.iter().filter(|r| ["blip", "koi_fish", "whistle", "scratchy", "chirp"].contains(&r[family])).count();
     assert!(2 * explained >= rows.len(), "{explained} of {} triggers explained by a family: {text}", rows.len());

@@ -81,14 +81,14 @@ fn training_errors_are_clear() {
 }
 
 #[test]
-fn glitch_data_has_six_classes_of_whitened_segments() {
+fn glitch_data_has_eight_classes_of_whitened_segments() {
     let path = std::env::temp_dir().join(format!("gwml-glitch-data-{}.npz", std::process::id()));
     let (ok, out, err) = gwml(&["data", "glitch", "--n", "24", "--seed", "5", "--out", &path.display().to_string()]);
     assert!(ok, "{err}");
-    assert!(out.contains("x (24 × 4096") && out.contains("Koi Fish") && out.contains("Chirp"), "{out}");
+    assert!(out.contains("x (24 × 4096") && out.contains("Koi Fish") && out.contains("Scattered Light"), "{out}");
     let ds = Dataset::read(&path).unwrap();
     assert_eq!(ds.arrays["x"].shape, vec![24, 4096]);
-    assert!(ds.arrays["label"].data.iter().all(|l| (0.0..6.0).contains(l) && l.fract() == 0.0));
+    assert!(ds.arrays["label"].data.iter().all(|l| (0.0..8.0).contains(l) && l.fract() == 0.0));
     let _ = std::fs::remove_file(&path);
     let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--snr", "30..8", "--out", "/tmp/never.npz"]);
     assert!(!ok && err.contains("SNR range"), "{err}");
@@ -97,9 +97,10 @@ fn glitch_data_has_six_classes_of_whitened_segments() {
     assert!(!ok && err.contains("glitch data only"), "{err}");
     let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--psd-knee=-5", "--out", "/tmp/never.npz"]);
     assert!(!ok && err.contains("knee"), "{err}");
-    // So is the Koi Fish loudness, which must be positive.
-    let (ok, _, err) = gwml(&["data", "bursts", "--n", "2", "--koi-fish-loudness", "2", "--out", "/tmp/never.npz"]);
+    // So is ideal noise; the Koi Fish loudness factor is gone (each class
+    // has its own SNR range).
+    let (ok, _, err) = gwml(&["data", "bursts", "--n", "2", "--ideal-noise", "--out", "/tmp/never.npz"]);
     assert!(!ok && err.contains("glitch data only"), "{err}");
-    let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--koi-fish-loudness", "0", "--out", "/tmp/never.npz"]);
-    assert!(!ok && err.contains("Koi Fish loudness"), "{err}");
+    let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--koi-fish-loudness", "2", "--out", "/tmp/never.npz"]);
+    assert!(!ok && err.contains("--koi-fish-loudness"), "{err}");
 }

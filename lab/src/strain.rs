@@ -9,7 +9,10 @@
 //! one-sided PSD `S`. Glitches: the signals of `lab/models/glitch/synth.gw`
 //! (scene `glitch_strain`) with shape params drawn as for `gwml data glitch`
 //! ([`crate::synth::draw_shape`]), centred on their injection time (the
-//! chirp's merger at it), scaled to an optimal SNR drawn uniformly from the
+//! chirp's merger at it), cut to their 1 s window by a Tukey taper of
+//! [`TAPER`] s at each end (a Scratchy or Scattered Light glitch longer
+//! than the window would otherwise end in a step, a broadband transient of
+//! its own), scaled to an optimal SNR drawn uniformly from the
 //! range: `ρ² = 4 df Σ |h̃(f)|² / S(f)` over 20 Hz–2 kHz, the band of the
 //! glitch datasets. Injection times: a Poisson process of the given rate,
 //! at least 2 s apart and 10 s from the ends, never in a gap.
@@ -25,6 +28,24 @@ use realfft::RealFftPlanner;
 
 /// Sample rate of simulated strain (that of the glitch signal scene).
 pub const SAMPLE_RATE: f64 = 4096.0;
+/// Length (s) of the cosine taper at each end of an injected 1 s window.
+pub const TAPER: f64 = 0.1;
+
+/// The Tukey window that cuts an injected signal to `n` samples at `fs`:
+/// a half cosine rising over the first [`TAPER`] s, one in the middle.
+fn injection_taper(n: usize, fs: f64) -> Vec<f64> {
+    let edge = (TAPER * fs) as usize;
+    (0..n)
+        .map(|i| {
+            let d = i.min(n - 1 - i);
+            if d >= edge {
+                1.0
+            } else {
+                0.5 * (1.0 - (std::f64::consts::PI * d as f64 / edge as f64).cos())
+            }
+        })
+        .collect()
+}
 
 /// The noise PSD of simulated strain.
 #[derive(Clone, Debug)]
@@ -174,6 +195,7 @@ fn inject<R: Rng>(
     let psd_1hz: Vec<f64> = (0..=window / 2).map(|k| curve.psd_at(k as f64)).collect();
     let mut planner = RealFftPlanner::<f64>::new();
     let (fft, ifft) = (planner.plan_fft_forward(window), planner.plan_fft_inverse(window));
+    let taper = injection_taper(window, fs);
     let mean_gap = 60.0 / o.glitch_rate;
     let mut injections = Vec::new();
     let mut t = 10.0;
@@ -212,6 +234,7 @@ fn inject<R: Rng>(
                 h
             }
         };
+        let h: Vec<f64> = h.iter().zip(&taper).map(|(v, w)| v * w).collect();
         let mut input: Vec<f64> = h.iter().map(|v| v * 1e-21).collect();
         let mut spectrum = fft.make_output_vec();
         fft.process(&mut input, &mut spectrum).map_err(|e| Error::Bind(format!("FFT failed: {e}")))?;
@@ -288,6 +311,17 @@ fn truth_csv(injections: &[Injection]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_injection_taper_cuts_smoothly_to_zero_at_the_window_ends() {
+        let w = injection_taper(4096, 4096.0);
+        assert_eq!((w[0], w[4095]), (0.0, 0.0));
+        assert!(w[410..3686].iter().all(|v| *v == 1.0));
+        assert!(w.windows(2).take(410).all(|p| p[1] >= p[0]), "rises monotonically");
+        assert!((0..4096).all(|i| (w[i] - w[4095 - i]).abs() < 1e-15), "symmetric");
+        // The half-way point of the taper is at TAPER / 2.
+        assert!((w[205] - 0.5).abs() < 0.01, "{}", w[205]);
+    }
 
     #[test]
     fn truth_columns_line_up_across_classes() {

@@ -15,6 +15,7 @@
 //! their own seeds, so every split is disjoint by seed. Results go to
 //! Markdown, CSV and PNG files in the output directory.
 
+pub mod leak;
 pub mod metrics;
 pub mod rules;
 
@@ -37,7 +38,7 @@ const CNN_SOURCE: &str = include_str!("../../models/glitch/cnn.gw");
 const TEMPLATE_NET_SOURCE: &str = include_str!("../../models/glitch/template_net.gw");
 
 /// Classes scored in the macro averages: every class but None.
-const GLITCH_LIKE: [usize; 5] = [1, 2, 3, 4, 5];
+const GLITCH_LIKE: [usize; 7] = [1, 2, 3, 4, 5, 6, 7];
 
 /// Seeds of the splits (training sets of every size are prefixes of one draw).
 const TRAIN_SEED: u64 = 1;
@@ -46,9 +47,10 @@ const TEST_SEED: u64 = 3;
 const LOW_SNR_SEED: u64 = 4;
 const SHIFTED_PSD_SEED: u64 = 5;
 
-/// The standard SNR range, and the shifted one of the generalisation check.
-const SNR: (f64, f64) = (8.0, 30.0);
-const LOW_SNR: (f64, f64) = (5.0, 12.0);
+/// The standard SNRs (each class's own range), and the one range of the
+/// low-SNR generalisation check.
+const SNR: Option<(f64, f64)> = None;
+const LOW_SNR: Option<(f64, f64)> = Some((5.0, 12.0));
 /// Knee of the shifted PSD (see [`GlitchOptions::psd_knee`]).
 const SHIFTED_PSD_KNEE: f64 = 60.0;
 
@@ -179,6 +181,8 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
     };
     let data_seconds = start.elapsed().as_secs_f64();
     eprintln!("  ({data_seconds:.1} s)");
+    let probe_train = train.head(plan.tune);
+    let probes = leak::probe(&probe_train, &val, GLITCH_CLASSES.len())?;
 
     let mut scored = Vec::new();
     scored.push(run_rules(plan, &train, &tests)?);
@@ -188,7 +192,7 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
         }
     }
     let total = start.elapsed().as_secs_f64();
-    write_results(o, plan, &scored, data_seconds, total)
+    write_results(o, plan, &scored, &probes, data_seconds, total)
 }
 
 /// Labels of a dataset as class indices.
@@ -310,7 +314,14 @@ fn write_file(dir: &Path, name: &str, text: &str) -> Result<(), String> {
     std::fs::write(&path, text).map_err(|e| format!("error: cannot write {}: {e}", path.display()))
 }
 
-fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seconds: f64, total: f64) -> Result<(), String> {
+fn write_results(
+    o: &GlitchExperiment,
+    plan: &Plan,
+    scored: &[Scored],
+    probes: &[leak::Probe],
+    data_seconds: f64,
+    total: f64,
+) -> Result<(), String> {
     let rows_main: Vec<Vec<String>> = headline(plan, scored)
         .iter()
         .map(|s| {
@@ -385,6 +396,8 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
     write_file(&o.out, "per_class.csv", &csv_table(&per_class_header, &per_class))?;
     write_file(&o.out, "generalisation.csv", &csv_table(&gen_header, &generalisation))?;
     write_file(&o.out, "learning_curve.csv", &csv_table(&curve_header, &curve))?;
+    let (probe_md, probe_csv) = leak::tables(probes);
+    write_file(&o.out, "leak_probe.csv", &probe_csv)?;
 
     // Plots: learning curves and the confusion matrices at the reference size.
     let points = |key: &str| -> Vec<(f64, f64, f64)> {
@@ -417,10 +430,21 @@ fn write_results(o: &GlitchExperiment, plan: &Plan, scored: &[Scored], data_seco
     let _ = writeln!(
         md,
         "Written by `{mode}` in {total:.0} s ({data_seconds:.0} s drawing data) on {} threads. Test sets of {} examples each \
-         (six classes drawn uniformly: None, Blip, Koi Fish, Whistle, Scratchy, Chirp); macro averages over the five \
+         (eight classes drawn uniformly: {}); macro averages over the seven \
          classes other than None. Training sets are prefixes of one draw (seed {TRAIN_SEED}); validation seed {VAL_SEED}, \
          test seed {TEST_SEED}, low-SNR test seed {LOW_SNR_SEED}, shifted-PSD test seed {SHIFTED_PSD_SEED}.\n",
-        o.threads, plan.test
+        o.threads,
+        plan.test,
+        GLITCH_CLASSES.join(", ")
+    );
+    let _ = writeln!(
+        md,
+        "## Leak probe\n\nOne-feature classifiers ({} quantile bins, the majority class per bin) fitted on {} training \
+         examples and scored on the validation split. The time of the peak must not beat the majority class by more than \
+         {} points.\n\n{probe_md}",
+        leak::BINS,
+        plan.tune,
+        leak::POSITION_ALLOWANCE
     );
     let _ = writeln!(md, "## Methods\n\n{}\n", markdown_table(&main_header, &rows_main));
     let _ = writeln!(md, "## Per class (standard test set)\n\n{}\n", markdown_table(&per_class_header, &per_class));
@@ -456,12 +480,14 @@ mod tests {
         let summary = read("summary.csv");
         assert_eq!(summary.lines().count(), 1 + 3, "{summary}");
         assert!(summary.contains("Rule-based filtering") && summary.contains("CNN") && summary.contains("template bank"));
-        // Six classes for each of the three methods.
-        assert_eq!(read("per_class.csv").lines().count(), 1 + 3 * 6);
+        // Eight classes for each of the three methods.
+        assert_eq!(read("per_class.csv").lines().count(), 1 + 3 * 8);
         // A row per true class for each method, a column per predicted class.
         let confusion = read("confusion.csv");
-        assert_eq!(confusion.lines().count(), 1 + 3 * 6);
-        assert!(confusion.lines().all(|l| l.split(',').count() == 3 + 6), "{confusion}");
+        assert_eq!(confusion.lines().count(), 1 + 3 * 8);
+        assert!(confusion.lines().all(|l| l.split(',').count() == 3 + 8), "{confusion}");
+        // A probe row per feature: energy, time of peak, seven bands.
+        assert_eq!(read("leak_probe.csv").lines().count(), 1 + 9);
         // Three test sets for each method.
         assert_eq!(read("generalisation.csv").lines().count(), 1 + 3 * 3);
         // Two sizes for each learner.

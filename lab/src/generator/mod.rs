@@ -66,7 +66,7 @@ pub struct GeneratorFitArgs {
     /// Example glitches: an .npz with `x` (rows of 4096 whitened samples at
     /// 4096 Hz; with a `label` array, only the family's rows are used) or an
     /// .npy of such rows [default: draw --n examples of the family as
-    /// `gwml data glitch --class FAMILY --koi-fish-loudness 1` does].
+    /// `gwml data glitch --class FAMILY --snr LO..HI` does].
     #[arg(long, value_name = "PATH")]
     pub examples: Option<PathBuf>,
     /// Examples to draw when --examples is not given.
@@ -266,8 +266,7 @@ fn examples(a: &GeneratorFitArgs, class: usize) -> Result<Examples, String> {
         None => {
             let (lo, hi) = parse_range(&a.snr)?;
             // Every family at the stated SNR, Koi Fish included.
-            let options =
-                GlitchOptions { n: a.n, seed: a.seed, snr: (lo, hi), koi_fish_loudness: 1.0, class: Some(class), ..Default::default() };
+            let options = GlitchOptions { n: a.n, seed: a.seed, snr: Some((lo, hi)), class: Some(class), ..Default::default() };
             let ds = glitches(&options).map_err(render)?;
             let x = &ds.arrays["x"];
             Ok(Examples { noisy: (0..x.rows()).map(|i| x.row(i).to_vec()).collect(), clean: None })
