@@ -37,6 +37,10 @@ const CNN_SOURCE: &str = include_str!("../../models/glitch/cnn.gw");
 /// The differentiable model of method 3.
 const TEMPLATE_NET_SOURCE: &str = include_str!("../../models/glitch/template_net.gw");
 
+/// Classes whose glitches are longer than a row (Scratchy, Scattered Light),
+/// left out of the leak probe's position check.
+const LONG_CLASSES: [usize; 2] = [4, 7];
+
 /// Classes scored in the macro averages: every class but None.
 const GLITCH_LIKE: [usize; 7] = [1, 2, 3, 4, 5, 6, 7];
 
@@ -182,7 +186,7 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
     let data_seconds = start.elapsed().as_secs_f64();
     eprintln!("  ({data_seconds:.1} s)");
     let probe_train = train.head(plan.tune);
-    let probes = leak::probe(&probe_train, &val, GLITCH_CLASSES.len())?;
+    let probes = leak::probe(&probe_train, &val, GLITCH_CLASSES.len(), &LONG_CLASSES)?;
 
     let mut scored = Vec::new();
     scored.push(run_rules(plan, &train, &tests)?);
@@ -440,8 +444,8 @@ fn write_results(
     let _ = writeln!(
         md,
         "## Leak probe\n\nOne-feature classifiers ({} quantile bins, the majority class per bin) fitted on {} training \
-         examples and scored on the validation split. The time of the peak must not beat the majority class by more than \
-         {} points.\n\n{probe_md}",
+         examples and scored on the validation split. The time of the peak, without the classes longer than a row, must not \
+         beat the majority class by more than {} points.\n\n{probe_md}",
         leak::BINS,
         plan.tune,
         leak::POSITION_ALLOWANCE
@@ -486,8 +490,9 @@ mod tests {
         let confusion = read("confusion.csv");
         assert_eq!(confusion.lines().count(), 1 + 3 * 8);
         assert!(confusion.lines().all(|l| l.split(',').count() == 3 + 8), "{confusion}");
-        // A probe row per feature: energy, time of peak, seven bands.
-        assert_eq!(read("leak_probe.csv").lines().count(), 1 + 9);
+        // A probe row per feature: energy, time of peak (all classes, short
+        // ones), seven bands.
+        assert_eq!(read("leak_probe.csv").lines().count(), 1 + 10);
         // Three test sets for each method.
         assert_eq!(read("generalisation.csv").lines().count(), 1 + 3 * 3);
         // Two sizes for each learner.
