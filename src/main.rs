@@ -370,7 +370,7 @@ pub struct DataArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Range of the optimal signal-to-noise ratio [default: 6..15 for bursts;
-    /// for glitch, each class's own range after Gravity Spy (Blip 7.5-100,
+    /// for glitch, each class's own range after Gravity Spy (Blip 6.5-100,
     /// Koi Fish 25-400, ...), drawn log-uniformly; a range given here is
     /// drawn uniformly for every class].
     #[arg(long)]

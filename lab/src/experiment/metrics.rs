@@ -104,6 +104,18 @@ pub fn percent(x: f64) -> String {
     }
 }
 
+/// Fractions over seeds as a percentage "mean ± sd" (sample sd, one
+/// decimal); a single value has no spread and prints as [`percent`].
+pub fn percent_spread(xs: &[f64]) -> String {
+    let n = xs.len() as f64;
+    if xs.len() < 2 {
+        return xs.first().map_or_else(|| percent(f64::NAN), |x| percent(*x));
+    }
+    let mean = xs.iter().sum::<f64>() / n;
+    let sd = (xs.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0)).sqrt();
+    format!("{} ± {}", percent(mean), percent(sd))
+}
+
 /// A Markdown table: a header row, a separator and the rows.
 pub fn markdown_table(header: &[&str], rows: &[Vec<String>]) -> String {
     let mut out = format!("| {} |\n|{}\n", header.join(" | "), header.iter().map(|_| "---|").collect::<String>());
@@ -127,6 +139,14 @@ pub fn csv_table(header: &[&str], rows: &[Vec<String>]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Mean and sample sd in percent: 0.90 and 0.94 give 92.0 ± 2.8.
+    #[test]
+    fn spreads_are_mean_and_sample_sd() {
+        assert_eq!(percent_spread(&[0.90, 0.94]), "92.0 ± 2.8");
+        assert_eq!(percent_spread(&[0.5]), "50.0");
+        assert_eq!(percent_spread(&[]), "–");
+    }
 
     #[test]
     fn scores_follow_their_definitions() {

@@ -1,6 +1,6 @@
 //! `gwml experiment glitch`: the reference experiment of the glitch
 //! pipeline. Three classifiers see the same synthetic data
-//! ([`crate::synth::glitches`]: whitened 1 s segments of six
+//! ([`crate::synth::glitches`]: whitened 1 s segments of eight
 //! classes) and are scored on the same test sets:
 //!
 //! 1. [`rules::RuleClassifier`]: a fixed matched-filter bank with tuned
@@ -12,8 +12,11 @@
 //! Training sets of several sizes (prefixes of one seed's draw) give the
 //! learning curves; validation, test and the two shifted test sets (lower
 //! SNR; excess low-frequency noise the whitening does not model) use
-//! their own seeds, so every split is disjoint by seed. Results go to
-//! Markdown, CSV and PNG files in the output directory.
+//! their own seeds, so every split is disjoint by seed. Each learner is
+//! trained from several training seeds (initial weights and batch order)
+//! per size, and the tables give the mean ± sd over them; per-class
+//! tables, confusion matrices and details come from the first seed.
+//! Results go to Markdown, CSV and PNG files in the output directory.
 
 pub mod leak;
 pub mod metrics;
@@ -27,7 +30,7 @@ use gwml_runtime::optim::{Method, OptimConfig, Schedule};
 use gwml_runtime::train::{TrainOptions, Trainer};
 use gwml_runtime::Model;
 use indicatif::{ProgressBar, ProgressStyle};
-use metrics::{csv_table, markdown_table, percent, Confusion};
+use metrics::{csv_table, markdown_table, percent, percent_spread, Confusion};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -84,6 +87,8 @@ struct Plan {
     steps: usize,
     min_epochs: usize,
     max_epochs: usize,
+    /// Training seeds per learner and size.
+    seeds: u64,
 }
 
 impl Plan {
@@ -98,6 +103,7 @@ impl Plan {
                 steps: 600,
                 min_epochs: 6,
                 max_epochs: 20,
+                seeds: 2,
             }
         } else {
             Plan {
@@ -109,6 +115,7 @@ impl Plan {
                 steps: 3000,
                 min_epochs: 4,
                 max_epochs: 60,
+                seeds: 5,
             }
         }
     }
@@ -155,6 +162,8 @@ struct Scored {
     method: String,
     key: String,
     train_examples: usize,
+    /// Training seed (0 for the rules, which have none).
+    seed: u64,
     /// Confusion on each test set, in [`TestSets::all`] order.
     confusions: Vec<Confusion>,
     seconds: f64,
@@ -192,7 +201,9 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
     scored.push(run_rules(plan, &train, &tests)?);
     for learner in &LEARNERS {
         for &n in &plan.sizes {
-            scored.push(run_learner(learner, plan, &train.head(n), &val, &tests, o.threads)?);
+            for seed in 0..plan.seeds {
+                scored.push(run_learner(learner, plan, &train.head(n), &val, &tests, o.threads, seed)?);
+            }
         }
     }
     let total = start.elapsed().as_secs_f64();
@@ -221,13 +232,23 @@ fn run_rules(plan: &Plan, train: &Dataset, tests: &TestSets) -> Result<Scored, S
         method: "Rule-based filtering".into(),
         key: "rules".into(),
         train_examples: 0,
+        seed: 0,
         confusions,
         seconds,
         details: Some(rules.describe()),
     })
 }
 
-fn run_learner(l: &Learner, plan: &Plan, train: &Dataset, val: &Dataset, tests: &TestSets, threads: usize) -> Result<Scored, String> {
+#[allow(clippy::too_many_arguments)]
+fn run_learner(
+    l: &Learner,
+    plan: &Plan,
+    train: &Dataset,
+    val: &Dataset,
+    tests: &TestSets,
+    threads: usize,
+    seed: u64,
+) -> Result<Scored, String> {
     let t0 = Instant::now();
     let n = train.examples().map_err(render)?;
     let epochs = plan.epochs(n, l.batch);
@@ -246,7 +267,7 @@ fn run_learner(l: &Learner, plan: &Plan, train: &Dataset, val: &Dataset, tests: 
             schedule: Schedule::Cosine { total: epochs as u64 * steps_per_epoch, min_lr: 0.0 },
             clip_norm: Some(10.0),
         },
-        seed: 0,
+        seed,
         threads,
         patience: None,
         checkpoint_dir: None,
@@ -258,7 +279,7 @@ fn run_learner(l: &Learner, plan: &Plan, train: &Dataset, val: &Dataset, tests: 
             .map_err(|e| format!("error: {e}"))?
             .progress_chars("=> "),
     );
-    bar.set_message(format!("{} on {n}", l.title));
+    bar.set_message(format!("{} on {n}, seed {seed}", l.title));
     let done_epochs = std::cell::Cell::new(0u64);
     // No validation between epochs: nothing stops early, and the
     // validation accuracy is reported once, after the last epoch.
@@ -287,11 +308,11 @@ fn run_learner(l: &Learner, plan: &Plan, train: &Dataset, val: &Dataset, tests: 
     let seconds = t0.elapsed().as_secs_f64();
     let val_acc = percent(val_confusion.accuracy());
     eprintln!(
-        "{} on {n} examples, {epochs} epochs: validation accuracy {val_acc} %, test macro P/R {} ({seconds:.1} s)",
+        "{} on {n} examples, seed {seed}, {epochs} epochs: validation accuracy {val_acc} %, test macro P/R {} ({seconds:.1} s)",
         l.title,
         macro_line(&confusions[0])
     );
-    Ok(Scored { method: l.title.into(), key: l.key.into(), train_examples: n, confusions, seconds, details: trained_params })
+    Ok(Scored { method: l.title.into(), key: l.key.into(), train_examples: n, seed, confusions, seconds, details: trained_params })
 }
 
 fn macro_line(c: &Confusion) -> String {
@@ -305,12 +326,37 @@ fn macro_line(c: &Confusion) -> String {
 /// check compare: the rule-based classifier and each learner at the
 /// reference size.
 fn compared<'a>(plan: &'a Plan, scored: &'a [Scored]) -> impl Iterator<Item = &'a Scored> {
-    scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference)
+    scored.iter().filter(|s| (s.key == "rules" || s.train_examples == plan.reference) && s.seed == 0)
 }
 
-fn headline<'a>(plan: &Plan, scored: &'a [Scored]) -> Vec<&'a Scored> {
+/// The runs of each method and size (one per seed), in run order.
+fn by_seed(scored: &[Scored], keep: impl Fn(&Scored) -> bool) -> Vec<Vec<&Scored>> {
+    let mut groups: Vec<Vec<&Scored>> = Vec::new();
+    for s in scored.iter().filter(|s| keep(s)) {
+        match groups.iter_mut().find(|g| g[0].key == s.key && g[0].train_examples == s.train_examples) {
+            Some(g) => g.push(s),
+            None => groups.push(vec![s]),
+        }
+    }
+    groups
+}
+
+/// The main table's runs: the rules, each learner at the reference size and
+/// at the largest size, grouped over seeds.
+fn headline<'a>(plan: &Plan, scored: &'a [Scored]) -> Vec<Vec<&'a Scored>> {
     let largest = *plan.sizes.last().expect("at least one size");
-    scored.iter().filter(|s| s.key == "rules" || s.train_examples == plan.reference || s.train_examples == largest).collect()
+    by_seed(scored, |s| s.key == "rules" || s.train_examples == plan.reference || s.train_examples == largest)
+}
+
+/// Macro precision, macro recall and accuracy on test set `set` as
+/// "mean ± sd" over a group's seeds, and the mean seconds per run.
+fn spread_cells(group: &[&Scored], set: usize) -> [String; 4] {
+    let scores: Vec<(f64, f64)> = group.iter().map(|s| s.confusions[set].macro_scores(&GLITCH_LIKE)).collect();
+    let precision: Vec<f64> = scores.iter().map(|x| x.0).collect();
+    let recall: Vec<f64> = scores.iter().map(|x| x.1).collect();
+    let accuracy: Vec<f64> = group.iter().map(|s| s.confusions[set].accuracy()).collect();
+    let seconds = group.iter().map(|s| s.seconds).sum::<f64>() / group.len() as f64;
+    [percent_spread(&precision), percent_spread(&recall), percent_spread(&accuracy), format!("{seconds:.0}")]
 }
 
 fn write_file(dir: &Path, name: &str, text: &str) -> Result<(), String> {
@@ -328,21 +374,22 @@ fn write_results(
 ) -> Result<(), String> {
     let rows_main: Vec<Vec<String>> = headline(plan, scored)
         .iter()
-        .map(|s| {
-            let (p, r) = s.confusions[0].macro_scores(&GLITCH_LIKE);
+        .map(|g| {
+            let s = g[0];
             let n = if s.train_examples == 0 {
                 "0 (tuned on ".to_string() + &plan.tune.to_string() + ")"
             } else {
                 s.train_examples.to_string()
             };
-            vec![s.method.clone(), percent(p), percent(r), percent(s.confusions[0].accuracy()), n, format!("{:.0}", s.seconds)]
+            let [p, r, a, seconds] = spread_cells(g, 0);
+            vec![s.method.clone(), p, r, a, n, g.len().to_string(), seconds]
         })
         .collect();
-    let main_header = ["method", "macro precision %", "macro recall %", "accuracy %", "training examples", "seconds"];
+    let main_header = ["method", "macro precision %", "macro recall %", "accuracy %", "training examples", "seeds", "seconds per run"];
 
     let per_class_header = ["method", "training examples", "class", "precision %", "recall %", "false-positive rate %", "support"];
     let mut per_class = Vec::new();
-    for s in headline(plan, scored) {
+    for s in headline(plan, scored).iter().map(|g| g[0]) {
         for (c, name) in GLITCH_CLASSES.iter().enumerate() {
             let k = s.confusions[0].score(c);
             per_class.push(vec![
@@ -359,28 +406,21 @@ fn write_results(
 
     let gen_header = ["method", "training examples", "test set", "macro precision %", "macro recall %", "drop in recall (points)"];
     let mut generalisation = Vec::new();
-    for s in compared(plan, scored) {
-        let (_, r0) = s.confusions[0].macro_scores(&GLITCH_LIKE);
-        for (c, name) in s.confusions.iter().zip(TEST_SET_NAMES) {
-            let (p, r) = c.macro_scores(&GLITCH_LIKE);
-            generalisation.push(vec![
-                s.method.clone(),
-                s.train_examples.to_string(),
-                name.to_string(),
-                percent(p),
-                percent(r),
-                format!("{:.1}", 100.0 * (r0 - r)),
-            ]);
+    for g in by_seed(scored, |s| s.key == "rules" || s.train_examples == plan.reference) {
+        let recall = |set: usize| g.iter().map(|s| s.confusions[set].macro_scores(&GLITCH_LIKE).1).sum::<f64>() / g.len() as f64;
+        for (set, name) in TEST_SET_NAMES.iter().enumerate() {
+            let [p, r, _, _] = spread_cells(&g, set);
+            let drop = format!("{:.1}", 100.0 * (recall(0) - recall(set)));
+            generalisation.push(vec![g[0].method.clone(), g[0].train_examples.to_string(), name.to_string(), p, r, drop]);
         }
     }
 
-    let curve_header = ["method", "training examples", "macro precision %", "macro recall %", "seconds"];
-    let curve: Vec<Vec<String>> = scored
+    let curve_header = ["method", "training examples", "seeds", "macro precision %", "macro recall %", "seconds per run"];
+    let curve: Vec<Vec<String>> = by_seed(scored, |s| s.key != "rules")
         .iter()
-        .filter(|s| s.key != "rules")
-        .map(|s| {
-            let (p, r) = s.confusions[0].macro_scores(&GLITCH_LIKE);
-            vec![s.method.clone(), s.train_examples.to_string(), percent(p), percent(r), format!("{:.0}", s.seconds)]
+        .map(|g| {
+            let [p, r, _, seconds] = spread_cells(g, 0);
+            vec![g[0].method.clone(), g[0].train_examples.to_string(), g.len().to_string(), p, r, seconds]
         })
         .collect();
 
@@ -404,13 +444,14 @@ fn write_results(
     write_file(&o.out, "leak_probe.csv", &probe_csv)?;
 
     // Plots: learning curves and the confusion matrices at the reference size.
+    // Means over seeds.
     let points = |key: &str| -> Vec<(f64, f64, f64)> {
-        scored
+        by_seed(scored, |s| s.key == key)
             .iter()
-            .filter(|s| s.key == key)
-            .map(|s| {
-                let (precision, recall) = s.confusions[0].macro_scores(&GLITCH_LIKE);
-                (s.train_examples as f64, 100.0 * precision, 100.0 * recall)
+            .map(|g| {
+                let (p, r) = g.iter().map(|s| s.confusions[0].macro_scores(&GLITCH_LIKE)).fold((0.0, 0.0), |a, x| (a.0 + x.0, a.1 + x.1));
+                let k = g.len() as f64;
+                (g[0].train_examples as f64, 100.0 * p / k, 100.0 * r / k)
             })
             .collect()
     };
@@ -436,10 +477,13 @@ fn write_results(
         "Written by `{mode}` in {total:.0} s ({data_seconds:.0} s drawing data) on {} threads. Test sets of {} examples each \
          (eight classes drawn uniformly: {}); macro averages over the seven \
          classes other than None. Training sets are prefixes of one draw (seed {TRAIN_SEED}); validation seed {VAL_SEED}, \
-         test seed {TEST_SEED}, low-SNR test seed {LOW_SNR_SEED}, shifted-PSD test seed {SHIFTED_PSD_SEED}.\n",
+         test seed {TEST_SEED}, low-SNR test seed {LOW_SNR_SEED}, shifted-PSD test seed {SHIFTED_PSD_SEED}. Each learner is \
+         trained from {} seeds (initial weights and batch order) per size: tables give mean ± sd over them; per-class \
+         tables, confusion matrices and learned values are the first seed's.\n",
         o.threads,
         plan.test,
-        GLITCH_CLASSES.join(", ")
+        GLITCH_CLASSES.join(", "),
+        plan.seeds
     );
     let _ = writeln!(
         md,
@@ -476,13 +520,16 @@ mod tests {
     fn a_tiny_run_writes_every_table_and_plot() {
         let out = std::env::temp_dir().join(format!("gwml-experiment-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&out);
-        let plan = Plan { sizes: vec![30, 60], reference: 60, val: 30, test: 60, tune: 60, steps: 2, min_epochs: 1, max_epochs: 1 };
+        let plan =
+            Plan { sizes: vec![30, 60], reference: 60, val: 30, test: 60, tune: 60, steps: 2, min_epochs: 1, max_epochs: 1, seeds: 2 };
         let o = GlitchExperiment { quick: true, out: out.clone(), threads: 2 };
         run_plan(&o, &plan).unwrap();
         let read = |name: &str| std::fs::read_to_string(out.join(name)).unwrap();
-        // Rules, then each learner at the reference size (the largest).
+        // Rules, then each learner at the reference size (the largest),
+        // over two seeds (mean ± sd).
         let summary = read("summary.csv");
         assert_eq!(summary.lines().count(), 1 + 3, "{summary}");
+        assert_eq!(summary.lines().filter(|l| l.contains(" ± ") && l.contains(",2,")).count(), 2, "{summary}");
         assert!(summary.contains("Rule-based filtering") && summary.contains("CNN") && summary.contains("template bank"));
         // Eight classes for each of the three methods.
         assert_eq!(read("per_class.csv").lines().count(), 1 + 3 * 8);
@@ -495,8 +542,10 @@ mod tests {
         assert_eq!(read("leak_probe.csv").lines().count(), 1 + 10);
         // Three test sets for each method.
         assert_eq!(read("generalisation.csv").lines().count(), 1 + 3 * 3);
-        // Two sizes for each learner.
-        assert_eq!(read("learning_curve.csv").lines().count(), 1 + 2 * 2);
+        // Two sizes for each learner, each over two seeds.
+        let curve = read("learning_curve.csv");
+        assert_eq!(curve.lines().count(), 1 + 2 * 2);
+        assert!(curve.lines().skip(1).all(|l| l.contains(",2,")), "{curve}");
         for png in ["learning_curve.png", "confusion_rules.png", "confusion_cnn.png", "confusion_template_net.png"] {
             let bytes = std::fs::read(out.join(png)).unwrap();
             assert!(bytes.starts_with(b"\x89PNG"), "{png} is not a PNG");

@@ -51,8 +51,8 @@ pub const GLITCH_CLASSES: &[&str] = &["None", "Blip", "Koi Fish", "Whistle", "Sc
 pub(crate) const GLITCH_SCENE: &str = include_str!("../../models/glitch/synth.gw");
 
 /// Samples per row, and per second.
-const SAMPLES: usize = 4096;
-const RATE: f64 = 4096.0;
+pub(super) const SAMPLES: usize = 4096;
+pub(super) const RATE: f64 = 4096.0;
 
 /// The whitened signal shapes of [`glitches`], to draw one signal at a time
 /// with params of the caller's choosing (the learned glitch generator
@@ -197,7 +197,8 @@ const BACKGROUND_AT: (f64, f64) = (0.1, 0.9);
 /// ([`super::population`]). A None row is noise, three in four of them
 /// with a weak (SNR 2–5) transient of a glitch class where signals are
 /// centred; one row in ten of the other classes carries such a transient
-/// anywhere in 0.1–0.9 s.
+/// anywhere in 0.1–0.9 s. Half the Blips and Tomtes take the shape of a
+/// real glitch's fit instead of their formula ([`super::real_fits`]).
 pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
     glitches_with(o, &mut |_| Ok(None))
 }
@@ -267,7 +268,11 @@ pub fn glitches_with(o: &GlitchOptions, shape: &mut ShapeSource<'_>) -> Result<D
         if class > 0 {
             let at = rng.random_range(o.position.0..=o.position.1);
             let snr = draw_snr(&mut rng, class, o.snr);
-            let (w, norm) = match shape(class)? {
+            let given = match shape(class)? {
+                Some(s) => Some(s),
+                None => super::real_fits::draw(&mut rng, class),
+            };
+            let (w, norm) = match given {
                 Some(s) => {
                     let norm = s.iter().map(|v| v * v).sum::<f64>().sqrt();
                     if s.len() != SAMPLES || !(norm > 0.0 && norm.is_finite()) {

@@ -3,7 +3,9 @@
 //! [`glitches`] (`glitch.rs`): the glitch benchmark, whitened 1 s segments
 //! at 4096 Hz of eight classes ([`GLITCH_CLASSES`]) drawn from the
 //! population of `population.rs` (shapes, loudness and positions after
-//! Gravity Spy's numbers; noise with the flaws of whitened real strain).
+//! Gravity Spy's numbers; noise with the flaws of whitened real strain);
+//! half the Blips and Tomtes take the shapes of real glitches' fits
+//! (`real_fits.rs`).
 //!
 //! [`bursts`]: sine-Gaussian bursts in white Gaussian noise (label 1) against
 //! noise alone (label 0), the smallest detection problem a 1-D CNN should
@@ -14,6 +16,7 @@
 
 mod glitch;
 mod population;
+pub mod real_fits;
 
 pub(crate) use glitch::GLITCH_SCENE;
 pub use glitch::{
