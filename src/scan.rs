@@ -7,7 +7,7 @@ use crate::strain_input::{Source, StrainInput, StrainRun as Run};
 use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate_with, write_truth, NoiseCurve, StrainOptions};
-use gwml_lab::synth::GlitchClass;
+use gwml_lab::synth::{real_fits::RealShapes, GlitchClass};
 use gwml_strain::classifier::{Classifier, Manifest};
 use gwml_strain::gwosc::{self, WriteOptions};
 use gwml_strain::scan::{merge_rows, Report, ScanOptions, Scanner};
@@ -44,8 +44,11 @@ pub struct StrainArgs {
     /// Classes to inject, drawn uniformly.
     #[arg(long, value_enum, value_delimiter = ',', default_values = ["blip", "koi-fish", "whistle", "scratchy"])]
     pub classes: Vec<GlitchClass>,
-    /// Optimal SNR range of injections (against the PSD, 20 Hz-2 kHz).
-    #[arg(long, default_value = "8..30")]
+    /// Optimal SNR range of injections (against the PSD, 20 Hz-2 kHz),
+    /// drawn uniformly for every class; `class`: each class's own range,
+    /// log-uniform, as in `gwml data glitch` (Blip 6.5-100, Koi Fish
+    /// 25-400, Whistle 6.5-60, ...).
+    #[arg(long, value_name = "LO..HI|class", default_value = "8..30")]
     pub snr: String,
     /// Missing data: NaN samples and the DQ DATA bit cleared over START:LENGTH
     /// seconds from the first sample (repeatable).
@@ -69,6 +72,11 @@ pub struct StrainArgs {
     /// several classes.
     #[arg(long, value_name = "GEN.json")]
     pub generator: Vec<PathBuf>,
+    /// Half the Blips and Tomtes take the shape of a real O3 glitch's fit
+    /// instead of their formula, as in `gwml data glitch` (their truth rows
+    /// have no shape params).
+    #[arg(long)]
+    pub real_fits: bool,
 }
 
 /// `gwml data strain`.
@@ -99,7 +107,7 @@ pub fn data_strain(a: StrainArgs) -> Result<(), String> {
         psd,
         glitch_rate: a.glitch_rate,
         classes: a.classes.iter().map(|c| c.label()).collect(),
-        snr: parse_range(&a.snr)?,
+        snr: if a.snr == "class" { None } else { Some(parse_range(&a.snr)?) },
         gaps,
         seed: a.seed,
     };
@@ -107,7 +115,17 @@ pub fn data_strain(a: StrainArgs) -> Result<(), String> {
         return Err(format!("error: --ifo `{}` must be a detector name such as H1", a.ifo));
     }
     let mut shapes = GeneratorShapes::open(&a.generator, a.seed)?;
-    let (series, injections) = simulate_with(&options, &mut |class| shapes.shape(class)).map_err(render)?;
+    // Real fits' shapes from their own stream, so the formula draws of a
+    // seed stay as they are.
+    let mut real = RealShapes::new(a.seed.wrapping_add(0x5eed));
+    let (series, injections) = simulate_with(&options, &mut |class| {
+        Ok(match shapes.shape(class)? {
+            Some(s) => Some(s),
+            None if a.real_fits => real.draw(class),
+            None => None,
+        })
+    })
+    .map_err(render)?;
     let write = WriteOptions { chunk: (!a.uncompressed).then_some(16_384), gzip_level: 4 };
     gwosc::write(&a.out, &series, &write).map_err(|e| format!("error: {e}"))?;
     println!(

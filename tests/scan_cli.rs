@@ -93,8 +93,30 @@ fn bad_arguments_are_one_line_errors() {
     fails_with(&gwml(&["data", "strain", "--duration", "10", "--out", &out]), "--duration 10");
     fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--gap", "60:10"]), "--gap 60:10");
     fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--snr", "30..8"]), "SNR");
+    fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--snr", "loud"]), "expected a range LO..HI, got `loud`");
     let csv = temp("bad.txt").display().to_string();
     fails_with(&gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--out", &csv]), "write .csv or .json");
+}
+
+/// `--snr class` draws each class at its own range (Koi Fish 25-400, the
+/// others from 6.5) and `--real-fits` gives some Blips a real fit's shape,
+/// whose truth rows carry no formula params.
+#[test]
+fn per_class_snr_and_real_fit_shapes() {
+    let truth = temp("class_truth.csv").display().to_string();
+    let args = ["--duration", "256", "--glitch-rate", "20", "--classes", "koi-fish,blip", "--snr", "class", "--real-fits"];
+    strain("class.hdf5", &[&args[..], &["--truth", &truth]].concat());
+    let text = std::fs::read_to_string(&truth).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let f0 = header.iter().position(|h| *h == "f0").expect("an f0 column");
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let snr = |r: &Vec<&str>| r[2].parse::<f64>().unwrap();
+    let koi: Vec<f64> = rows.iter().filter(|r| r[1] == "Koi Fish").map(snr).collect();
+    let blips: Vec<&Vec<&str>> = rows.iter().filter(|r| r[1] == "Blip").collect();
+    assert!(koi.len() >= 10 && koi.iter().all(|s| (25.0..=400.0).contains(s)), "Koi Fish SNRs {koi:?}");
+    assert!(blips.iter().all(|r| (6.5..=100.0).contains(&snr(r))));
+    let real = blips.iter().filter(|r| r[f0].is_empty()).count();
+    assert!(real >= 3 && real < blips.len(), "{real} of {} Blips without formula params", blips.len());
 }
 
 #[test]

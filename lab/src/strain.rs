@@ -18,7 +18,7 @@
 //! at least 2 s apart and 10 s from the ends, never in a gap.
 
 use crate::synth::ShapeSource;
-use crate::synth::{draw_shape, GLITCH_CLASSES};
+use crate::synth::{draw_shape, draw_snr, GLITCH_CLASSES};
 use gwml_runtime::noise::colored_noise;
 use gwml_runtime::spectrum::Spectrum;
 use gwml_runtime::{Error, Model, Value};
@@ -71,8 +71,10 @@ pub struct StrainOptions {
     pub glitch_rate: f64,
     /// Classes to inject (indices into [`GLITCH_CLASSES`], not 0), drawn uniformly.
     pub classes: Vec<usize>,
-    /// Optimal SNR range.
-    pub snr: (f64, f64),
+    /// Optimal SNR range (uniform) for every class; `None`: each class's
+    /// own range, log-uniform ([`crate::synth::snr_range`]: Koi Fish loud,
+    /// the others from 6.5).
+    pub snr: Option<(f64, f64)>,
     /// Missing data: (start seconds from the first sample, length seconds).
     pub gaps: Vec<(f64, f64)>,
     /// Seed.
@@ -108,8 +110,8 @@ pub fn simulate_with(o: &StrainOptions, shape: &mut ShapeSource<'_>) -> Result<(
     if !(o.glitch_rate >= 0.0 && o.glitch_rate.is_finite() && o.glitch_rate <= 30.0) {
         return Err(Error::Bind(format!("--glitch-rate {} per minute must be between 0 and 30", o.glitch_rate)));
     }
-    if !(o.snr.0 > 0.0 && o.snr.1 >= o.snr.0 && o.snr.1.is_finite()) {
-        return Err(Error::Bind(format!("SNR range {}..{} must be positive and increasing", o.snr.0, o.snr.1)));
+    if let Some(snr) = o.snr.filter(|r| !(r.0 > 0.0 && r.1 >= r.0 && r.1.is_finite())) {
+        return Err(Error::Bind(format!("SNR range {}..{} must be positive and increasing", snr.0, snr.1)));
     }
     if o.classes.is_empty() || o.classes.iter().any(|c| *c == 0 || *c >= GLITCH_CLASSES.len()) {
         return Err(Error::Bind("--classes must name at least one signal class (not None)".into()));
@@ -209,7 +211,7 @@ fn inject<R: Rng>(
         let class = o.classes[rng.random_range(0..o.classes.len())];
         let generated = shape(class)?;
         let mut params = if generated.is_some() { Vec::new() } else { draw_shape(rng, class).to_vec() };
-        let snr = rng.random_range(o.snr.0..=o.snr.1);
+        let snr = draw_snr(rng, class, o.snr);
         // Glitches centred in their 1 s window; a chirp merges at `tc`.
         let centre = if class == 5 && generated.is_none() {
             params.iter().find(|p| p.0 == "tc").map_or(0.9, |p| p.1)

@@ -48,7 +48,7 @@ fn gaussian_noise_alone_is_explained_as_noise() {
         psd: NoiseCurve::Aligo,
         glitch_rate: 0.0,
         classes: vec![1],
-        snr: (10.0, 20.0),
+        snr: Some((10.0, 20.0)),
         gaps: Vec::new(),
         seed: 11,
     };

@@ -15,7 +15,7 @@ fn options(duration: f64, rate: f64, seed: u64) -> StrainOptions {
         psd: NoiseCurve::Aligo,
         glitch_rate: rate,
         classes: vec![1, 2, 3, 4],
-        snr: (8.0, 30.0),
+        snr: Some((8.0, 30.0)),
         gaps: Vec::new(),
         seed,
     }

@@ -95,7 +95,7 @@ pub fn run_campaign(o: &CampaignOptions, mut progress: impl FnMut(&Outcome)) -> 
             psd: NoiseCurve::Aligo,
             glitch_rate: 10.0,
             classes: vec![class],
-            snr: o.snr,
+            snr: Some(o.snr),
             gaps: Vec::new(),
             seed: o.seed.wrapping_mul(1_000).wrapping_add(k as u64),
         };

@@ -135,6 +135,22 @@ pub fn draw<R: Rng>(rng: &mut R, class: usize) -> Option<Vec<f64>> {
     Some(whitened_shape(fit, rng.random_range(0.0..TAU), 0.5))
 }
 
+/// A seeded source of [`draw`]s on its own random stream (for callers
+/// whose other draws must not shift, as `gwml data strain`'s).
+pub struct RealShapes(rand_pcg::Pcg64Mcg);
+
+impl RealShapes {
+    /// The source of seed `seed`.
+    pub fn new(seed: u64) -> RealShapes {
+        RealShapes(rand::SeedableRng::seed_from_u64(seed))
+    }
+
+    /// A real fit's shape for half the Blips and Tomtes; `None` otherwise.
+    pub fn draw(&mut self, class: usize) -> Option<Vec<f64>> {
+        draw(&mut self.0, class)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
