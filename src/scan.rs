@@ -19,8 +19,8 @@ use std::time::Instant;
 
 /// The shipped classifier, embedded so `gwml scan` works from anywhere.
 const SHIPPED_MANIFEST: &str = include_str!("../models/glitch-classifier/glitch-classifier.json");
-const SHIPPED_MODEL: &str = include_str!("../lab/models/glitch/cnn.gw");
-const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../models/glitch-classifier/cnn.safetensors");
+const SHIPPED_MODEL: &str = include_str!("../lab/models/glitch/template_net.gw");
+const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../models/glitch-classifier/template_net.safetensors");
 const SHIPPED_PATH: &str = "models/glitch-classifier/glitch-classifier.json";
 
 #[derive(clap::Args)]
