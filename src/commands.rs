@@ -248,8 +248,7 @@ fn summary(len: usize, xs: impl Iterator<Item = f64> + Clone, complex: bool) -> 
 pub(crate) fn bind_args(run: &mut gwml::Run, bind: &BindArgs) -> Result<(), String> {
     for s in &bind.set {
         let (name, value) = split_pair(s, "--set")?;
-        let v: f64 = value.parse().map_err(|_| format!("error: --set {name}: `{value}` is not a number"))?;
-        run.param(name, v).map_err(render)?;
+        run.param_quantity(name, value).map_err(|e| format!("error: --set {s}: {}", render(e).trim_start_matches("error: ")))?;
     }
     for s in &bind.input {
         let (name, path) = split_pair(s, "--input")?;

@@ -152,7 +152,8 @@ pub struct CompileArgs {
 /// Param values and input data bound before running.
 #[derive(clap::Args)]
 pub struct BindArgs {
-    /// Set a param, in its declared unit (for `fit`, the starting value of a free param): `--set mc=30`.
+    /// Set a param (for `fit`, the starting value of a free param): `--set mc=30`
+    /// in its declared unit, or with a unit converted to it: `--set "tc=2 ms"`.
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`; or a real input

@@ -2,10 +2,11 @@
 //!
 //! The session is kept as source text: `use` lines, modules, and the
 //! statements of one implicit scene (`grid`, `param`, `input`, `let`).
-//! Every entry is checked by compiling that text with the new entry; an
-//! entry that fails is reported and forgotten, so an error never loses
-//! earlier definitions. Redefining a name replaces it, and since the whole
-//! session is recompiled, its dependents follow.
+//! Every entry is checked by compiling that text with the new entry (and a
+//! `let`, `param` or `knob` by evaluating it); an entry whose checking,
+//! compilation or evaluation fails is reported and forgotten, so an error
+//! never changes the session. Redefining a name replaces it, and since the
+//! whole session is recompiled, its dependents follow.
 
 use clap::Parser;
 use gwml::compiler::ir::{Function, Precision, UnknownSetting};
@@ -52,12 +53,14 @@ const COMMANDS: &[(&str, &str)] = &[
     ),
     (":precision", ":precision f64|f32|mixed         working precision"),
     (":defs", ":defs                            list the session's definitions"),
+    (":undef", ":undef NAME                      forget a definition nothing else uses"),
+    (":reset", ":reset                           forget every definition and loaded file"),
     (":help", ":help                            this list"),
     (":quit", ":quit                            leave (or Ctrl-D)"),
 ];
 
 /// What the user has defined.
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct Session {
     uses: Vec<String>,
     /// `(name, source)` of modules.
@@ -122,6 +125,15 @@ impl Session {
             Def::Module(n, s) => replace(&mut self.modules, &n, &s),
             Def::Stmt(n, s) => replace(&mut self.stmts, &n, &s),
         }
+    }
+
+    /// The session without definition `name`, if it has one.
+    fn without(&self, name: &str) -> Option<Session> {
+        let mut s = self.clone();
+        let before = s.modules.len() + s.stmts.len();
+        s.modules.retain(|(n, _)| n != name);
+        s.stmts.retain(|(n, _)| n != name);
+        (s.modules.len() + s.stmts.len() < before).then_some(s)
     }
 
     fn names(&self) -> Vec<String> {
@@ -330,14 +342,15 @@ impl Repl {
                 Def::Stmt(n, _) if ["let", "param", "knob"].contains(&first) => Some(n.clone()),
                 _ => None,
             };
+            // A value is evaluated before the definition is kept, so one that
+            // cannot be evaluated changes nothing.
+            let message = match &shown {
+                Some(n) => format!("{n} = {}", self.evaluate_in(Some(&def), n)?),
+                None => "ok".to_string(),
+            };
             self.session.commit(def);
             *self.names.borrow_mut() = self.session.names();
-            if let Some(n) = shown {
-                let v = self.evaluate(&n)?;
-                println!("{n} = {v}");
-            } else {
-                println!("ok");
-            }
+            println!("{message}");
             return Ok(true);
         }
         let v = self.evaluate(t)?;
@@ -357,15 +370,27 @@ impl Repl {
     }
 
     fn scene(&self, extra: &str) -> Result<gwml::Scene, String> {
-        let src = self.session.source(None, extra);
+        self.scene_in(None, extra)
+    }
+
+    /// The session's scene with `new` defined and `extra` statements.
+    fn scene_in(&self, new: Option<&Def>, extra: &str) -> Result<gwml::Scene, String> {
+        let src = self.session.source(new, extra);
         let model = self.compile(&src)?;
         model.scene_with(Some(SCENE), Options { precision: self.session.precision, ..Default::default() }).map_err(|e| self.render(e))
     }
 
     /// Value of `expr`, formatted.
     fn evaluate(&self, expr: &str) -> Result<String, String> {
-        let scene = self.scene(&format!("    output {VALUE} =\n{expr}"))?;
-        let out = scene.bind().forward().map_err(|e| self.render(e))?;
+        self.evaluate_in(None, expr)
+    }
+
+    /// Value of `expr` in the session with `new` defined, formatted.
+    fn evaluate_in(&self, new: Option<&Def>, expr: &str) -> Result<String, String> {
+        let scene = self.scene_in(new, &format!("    output {VALUE} =\n{expr}"))?;
+        // Run-time errors name the generated output: name what was typed.
+        let typed = |e: Error| self.render(e).replace(&format!("output `{VALUE}`"), &format!("`{}`", expr.trim()));
+        let out = scene.bind().forward().map_err(typed)?;
         let f = scene.ir();
         let unit = &f.outputs[0].unit;
         Ok(format_value(out.value(VALUE).map_err(|e| self.render(e))?, f, unit))
@@ -439,10 +464,9 @@ impl Repl {
                     .scene_with(Some(scene_name), Options { precision: self.session.precision, ..Default::default() })
                     .map_err(|e| self.render(e))?;
                 let mut run = scene.bind();
-                for kv in parts {
+                for kv in split_assignments(&parts.collect::<Vec<_>>().join(" ")) {
                     let (k, v) = kv.split_once('=').ok_or_else(|| format!("error: expected NAME=VALUE, got `{kv}`\n"))?;
-                    let v: f64 = v.parse().map_err(|_| format!("error: `{v}` is not a number\n"))?;
-                    run.param(k, v).map_err(|e| self.render(e))?;
+                    run.param_quantity(k.trim(), v).map_err(|e| self.render(e))?;
                 }
                 let has_grads = scene.ir().has_gradients();
                 let out = if has_grads { run.value_and_grad() } else { run.forward() }.map_err(|e| self.render(e))?;
@@ -455,7 +479,9 @@ impl Repl {
                 }
             }
             "save" => {
-                let src = self.session.source(None, "").replace(&format!("scene {SCENE} {{"), "scene session {");
+                // Settings go with the definitions: `:precision` becomes the scene's.
+                let precision = self.session.precision.map(|p| format!("\n    precision: {p}")).unwrap_or_default();
+                let src = self.session.source(None, "").replace(&format!("scene {SCENE} {{"), &format!("scene session {{{precision}"));
                 Program::parse(rest, &src).map_err(|e| e.render(self.color))?;
                 std::fs::write(rest, src).map_err(|e| format!("error: cannot write {rest}: {e}\n"))?;
                 println!("saved {rest}");
@@ -534,6 +560,27 @@ impl Repl {
                 self.session.precision = Some(precision);
                 println!("precision {rest}");
             }
+            "reset" => {
+                self.session = Session { precision: self.session.precision, ..Session::default() };
+                *self.names.borrow_mut() = Vec::new();
+                println!("session cleared (settings such as :precision kept)");
+            }
+            "undef" => {
+                let name = rest.trim();
+                let Some(smaller) = self.session.without(name) else {
+                    let names = self.session.names();
+                    let hint = gwml::compiler::front::diagnostics::did_you_mean(name, names.iter().map(|s| s.as_str()))
+                        .map(|s| format!("; did you mean `{s}`?"))
+                        .unwrap_or_default();
+                    return Err(format!("error: the session defines no `{name}`{hint} (:defs lists them)\n"));
+                };
+                if let Err(e) = self.compile(&smaller.source(None, "")) {
+                    return Err(format!("error: `{name}` is still used; forget what uses it first. Without it:\n{e}"));
+                }
+                self.session = smaller;
+                *self.names.borrow_mut() = self.session.names();
+                println!("forgot {name}");
+            }
             "defs" => {
                 for u in &self.session.uses {
                     println!("{u}");
@@ -552,6 +599,22 @@ impl Repl {
         }
         Ok(true)
     }
+}
+
+/// `NAME=VALUE` assignments separated by spaces, where a value may carry a
+/// unit after a space (`tc=2 ms mc=30 Msun`).
+fn split_assignments(text: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for word in text.split_whitespace() {
+        match out.last_mut() {
+            Some(last) if !word.contains('=') => {
+                last.push(' ');
+                last.push_str(word);
+            }
+            _ => out.push(word.to_string()),
+        }
+    }
+    out
 }
 
 fn fmt_time(s: f64) -> String {

@@ -73,6 +73,22 @@ fn run_with_npy_input_and_output() {
     }
 }
 
+/// `--set` takes values with units, converted to the param's declared unit
+/// (`tc` is declared in s, `mc` in Msun); a unit of another dimension or an
+/// unknown unit is a one-line error.
+#[test]
+fn set_accepts_units() {
+    let j = json(&["run", "examples/chirp_fit.gw", "--format", "json", "--set", "tc=2 ms", "--set", "mc=30 Msun"]);
+    assert_eq!((j["params"]["tc"].as_f64(), j["params"]["mc"].as_f64()), (Some(0.002), Some(30.0)), "{j}");
+    let plain = json(&["run", "examples/chirp_fit.gw", "--format", "json", "--set", "tc=0.002"]);
+    assert_eq!(plain["outputs"]["loss"], json(&["run", "examples/chirp_fit.gw", "--format", "json", "--set", "tc=2ms"])["outputs"]["loss"]);
+    let (ok, _, err) = gwml(&["run", "examples/chirp_fit.gw", "--set", "tc=2 Hz"]);
+    assert!(!ok && err.trim().lines().count() == 1);
+    assert!(err.contains("--set tc=2 Hz") && err.contains("param `tc` is in s") && err.contains("Hz"), "{err}");
+    let (ok, _, err) = gwml(&["run", "examples/chirp_fit.gw", "--set", "tc=2 furlongs"]);
+    assert!(!ok && err.contains("`furlongs` is not a unit"), "{err}");
+}
+
 #[test]
 fn errors_are_reported_not_panics() {
     let (ok, _, err) = gwml(&["run", "examples/chirp_fit.gw", "--set", "mcc=3"]);

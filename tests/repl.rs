@@ -52,6 +52,61 @@ grid f = frequencies(from: 20 Hz, to: 512 Hz, step: 0.25 Hz)
     assert!(out.contains("unexpected argument '--gpss'"), "{out}");
 }
 
+/// An entry whose checking or evaluation fails changes nothing (issue
+/// #27): a param without a default and a `let` that evaluates to -inf are
+/// reported and forgotten; `:undef` refuses a name still in use and forgets
+/// an unused one; `:reset` forgets everything but the precision, which
+/// `:save` writes into the scene.
+#[test]
+fn failed_entries_roll_back_and_definitions_can_be_forgotten() {
+    let saved = std::env::temp_dir().join(format!("gwml-repl-undef-{}.gw", std::process::id()));
+    let (ok, out) = piped(&format!(
+        "param m: Msun
+1 + 1
+param q = 0.0
+let z = log(q)
+:defs
+let y = q + 1
+let w = y * 2
+:undef y
+:undef w
+:undef y
+:undef nope
+:precision f32
+param k = 3.0
+:save {}
+:reset
+:defs
+k
+2 + 2
+",
+        saved.display()
+    ));
+    assert!(!ok, "failed entries set the exit status");
+    assert!(out.contains("param `m` has no default"), "{out}");
+    assert!(out.contains("gw> 1 + 1\n2\n"), "a failed param does not break later entries: {out}");
+    assert!(out.contains("error: `z` is not finite"), "the error names what was typed: {out}");
+    let defs = out.split("gw> :defs\n").nth(1).unwrap().split("gw>").next().unwrap();
+    assert_eq!(defs.trim(), "param q = 0.0", "only the entries that succeeded are kept: {out}");
+    assert!(out.contains("`y` is still used"), "{out}");
+    assert!(out.contains("forgot w") && out.contains("forgot y"), "{out}");
+    assert!(out.contains("the session defines no `nope`"), "{out}");
+    let text = std::fs::read_to_string(&saved).expect(":save wrote the session");
+    assert!(text.contains("precision: f32") && text.contains("param k = 3.0"), "{text}");
+    let after_reset = out.split("gw> :reset\n").nth(1).unwrap();
+    assert!(after_reset.contains("unknown name `k`") && after_reset.contains("gw> 2 + 2\n4\n"), "{after_reset}");
+    // `:run` takes values with units, as `--set` does.
+    let (_, out) = piped(":load examples/chirp_fit.gw\n:run chirp_fit tc=2 ms mc=30 Msun\n:run chirp_fit tc=2 Hz\n");
+    let with_units: f64 =
+        out.lines().find_map(|l| l.strip_prefix("loss = ")).and_then(|v| v.split_whitespace().next()?.parse().ok()).unwrap();
+    let (_, plain) = piped(":load examples/chirp_fit.gw\n:run chirp_fit tc=0.002 mc=30\n");
+    let without: f64 =
+        plain.lines().find_map(|l| l.strip_prefix("loss = ")).and_then(|v| v.split_whitespace().next()?.parse().ok()).unwrap();
+    assert_eq!(with_units, without, "{out}");
+    assert!(out.contains("param `tc` is in s"), "{out}");
+    let _ = std::fs::remove_file(&saved);
+}
+
 #[test]
 fn transcript_definitions_values_and_gradients() {
     let (ok, out) = piped(

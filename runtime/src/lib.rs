@@ -369,6 +369,30 @@ impl<'s> Run<'s> {
         Ok(self)
     }
 
+    /// Sets param `name` from text such as `2 ms` or `30 Msun`: a value
+    /// with a unit is converted to the param's declared unit (a unit of
+    /// another dimension is an error); a bare number is in the declared unit.
+    pub fn param_quantity(&mut self, name: &str, text: &str) -> Result<&mut Self, Error> {
+        let f = self.func();
+        let p = f.params.iter().find(|p| p.name == name).ok_or_else(|| unknown("param", name, f.params.iter().map(|p| p.name.as_str())))?;
+        let (x, unit) = gwml_compiler::front::units::parse_quantity(text).map_err(|e| Error::Bind(format!("param `{name}`: {e}")))?;
+        let value = match unit {
+            None => x,
+            Some(u) if u.dim.to_string() == p.dim => x * u.scale / p.scale,
+            Some(u) => {
+                return Err(Error::Bind(format!(
+                    "param `{name}` is in {} (dimension {}), but `{}` is in {} (dimension {})",
+                    p.unit,
+                    p.dim,
+                    text.trim(),
+                    u.name,
+                    u.dim
+                )))
+            }
+        };
+        self.param(name, value)
+    }
+
     /// Binds a real input (in its declared unit).
     pub fn input_real(&mut self, name: &str, data: &[f64]) -> Result<&mut Self, Error> {
         self.bind_input(name, data.len(), false, |k| C64::new(data[k], 0.0))

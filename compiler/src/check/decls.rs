@@ -71,7 +71,7 @@ impl<'a> Checker<'a> {
             }
             None => None,
         };
-        Some((ir::ParamInfo { name: p.name.node.clone(), default, bounds, scale, unit }, dim))
+        Some((ir::ParamInfo { name: p.name.node.clone(), default, bounds, scale, unit, dim: dim.to_string() }, dim))
     }
 
     /// Evaluates an input's default data at compile time (grids and constants only).

@@ -161,9 +161,46 @@ pub fn unit(name: &str) -> Option<&'static UnitDef> {
     UNITS.iter().find(|u| u.name == name)
 }
 
+/// A value written as a number and an optional unit name (`2 ms`, `30Msun`,
+/// `1e-3 s`, `0.5`), as `--set` and `:run` take them: the number and the
+/// unit, or a message saying what is wrong.
+pub fn parse_quantity(text: &str) -> Result<(f64, Option<&'static UnitDef>), String> {
+    let t = text.trim();
+    let split = t.len() - t.chars().rev().take_while(|c| c.is_ascii_alphabetic()).map(char::len_utf8).sum::<usize>();
+    let (number, name) = (t[..split].trim(), &t[split..]);
+    // `1e3` ends in a digit, but `2e` or `inf` would take letters: a suffix
+    // that is not a unit belongs to the number.
+    let (number, unit) = match unit(name) {
+        Some(u) if !number.is_empty() => (number, Some(u)),
+        _ if name.is_empty() || number.is_empty() || number.parse::<f64>().is_err() => (t, None),
+        _ => {
+            let names: Vec<&str> = UNITS.iter().map(|u| u.name).collect();
+            return Err(format!("`{name}` is not a unit (units: {})", names.join(", ")));
+        }
+    };
+    let x: f64 = number.parse().map_err(|_| format!("`{text}` is not a number, with or without a unit (e.g. `2 ms`)"))?;
+    if !x.is_finite() {
+        return Err(format!("`{text}` is not finite"));
+    }
+    Ok((x, unit))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quantities_parse_with_and_without_units() {
+        let q = |s: &str| parse_quantity(s).map(|(x, u)| (x, u.map(|u| u.name)));
+        assert_eq!(q("2 ms"), Ok((2.0, Some("ms"))));
+        assert_eq!(q("30Msun"), Ok((30.0, Some("Msun"))));
+        assert_eq!(q(" 1e-3 s "), Ok((1e-3, Some("s"))));
+        assert_eq!(q("0.5"), Ok((0.5, None)));
+        assert_eq!(q("1e3"), Ok((1000.0, None)));
+        assert!(q("2 furlongs").unwrap_err().contains("`furlongs` is not a unit"));
+        assert!(q("ms").unwrap_err().contains("not a number"));
+        assert!(q("inf").is_err() && q("").is_err());
+    }
 
     #[test]
     fn hz_times_seconds_is_dimensionless() {

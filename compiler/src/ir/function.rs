@@ -37,6 +37,9 @@ pub struct ParamInfo {
     pub scale: f64,
     /// Declared unit, for display.
     pub unit: String,
+    /// Its dimension in base units as the checker prints it (`s`, `Hz`,
+    /// `Msun`, `1`), to convert values given in other units.
+    pub dim: String,
 }
 
 /// Run-time data of the scene.
