@@ -67,9 +67,33 @@ struct Session {
     modules: Vec<(String, String)>,
     /// `(name, source)` of scene statements: grid, param, input, let.
     stmts: Vec<(String, String)>,
-    /// `(path, text)` of loaded files.
-    loaded: Vec<(String, String)>,
+    /// Loaded files.
+    loaded: Vec<Loaded>,
     precision: Option<Precision>,
+}
+
+/// A file brought in by `:load`.
+#[derive(Clone)]
+struct Loaded {
+    path: String,
+    text: String,
+    /// The text with its scenes blanked (lines kept): what entries need,
+    /// since an expression can call a loaded module but not a scene, and
+    /// checking the scenes again for every entry is most of its time.
+    modules: String,
+}
+
+impl Loaded {
+    fn new(path: &str, text: String, program: &Program) -> Loaded {
+        let mut modules = text.clone();
+        for item in &program.ast.items {
+            if let gwml::compiler::front::syntax::ast::Item::Scene(scene) = item {
+                let blank: String = text[scene.span.start..scene.span.end].chars().map(|c| if c == '\n' { '\n' } else { ' ' }).collect();
+                modules.replace_range(scene.span.start..scene.span.end, &blank);
+            }
+        }
+        Loaded { path: path.to_string(), text, modules }
+    }
 }
 
 /// A new definition.
@@ -80,8 +104,18 @@ enum Def {
 }
 
 impl Session {
-    /// The whole session as one program, with `extra` statements in its scene.
+    /// The session as one program, with `extra` statements in its scene,
+    /// without the loaded files' scenes (as entries are evaluated).
     fn source(&self, new: Option<&Def>, extra: &str) -> String {
+        self.source_with(new, extra, false)
+    }
+
+    /// The whole session as one program, loaded scenes included.
+    fn full_source(&self) -> String {
+        self.source_with(None, "", true)
+    }
+
+    fn source_with(&self, new: Option<&Def>, extra: &str, scenes: bool) -> String {
         let mut uses = self.uses.clone();
         let mut modules = self.modules.clone();
         let mut stmts = self.stmts.clone();
@@ -96,8 +130,8 @@ impl Session {
             out += u;
             out += "\n";
         }
-        for (_, text) in &self.loaded {
-            out += text;
+        for l in &self.loaded {
+            out += if scenes { &l.text } else { &l.modules };
             out += "\n";
         }
         for (_, m) in &modules {
@@ -447,9 +481,9 @@ impl Repl {
             "load" => {
                 let text = std::fs::read_to_string(rest).map_err(|e| format!("error: cannot read {rest}: {e}\n"))?;
                 let program = Program::parse(rest, &text).map_err(|e| e.render(self.color))?;
-                self.session.loaded.retain(|(p, _)| p != rest);
-                self.session.loaded.push((rest.to_string(), text));
-                if let Err(e) = self.compile(&self.session.source(None, "")) {
+                self.session.loaded.retain(|l| l.path != rest);
+                self.session.loaded.push(Loaded::new(rest, text, &program));
+                if let Err(e) = self.compile(&self.session.full_source()) {
                     self.session.loaded.pop();
                     return Err(e);
                 }
@@ -459,7 +493,7 @@ impl Repl {
             "run" => {
                 let mut parts = rest.split_whitespace();
                 let scene_name = parts.next().ok_or("error: usage: :run SCENE [NAME=VALUE ...]\n")?;
-                let model = self.compile(&self.session.source(None, ""))?;
+                let model = self.compile(&self.session.full_source())?;
                 let scene = model
                     .scene_with(Some(scene_name), Options { precision: self.session.precision, ..Default::default() })
                     .map_err(|e| self.render(e))?;
@@ -481,7 +515,7 @@ impl Repl {
             "save" => {
                 // Settings go with the definitions: `:precision` becomes the scene's.
                 let precision = self.session.precision.map(|p| format!("\n    precision: {p}")).unwrap_or_default();
-                let src = self.session.source(None, "").replace(&format!("scene {SCENE} {{"), &format!("scene session {{{precision}"));
+                let src = self.session.full_source().replace(&format!("scene {SCENE} {{"), &format!("scene session {{{precision}"));
                 Program::parse(rest, &src).map_err(|e| e.render(self.color))?;
                 std::fs::write(rest, src).map_err(|e| format!("error: cannot write {rest}: {e}\n"))?;
                 println!("saved {rest}");

@@ -186,12 +186,15 @@ let wave = sin(2.0 * pi * 3 Hz * t) * k
 :adjoint sum(wave) wrt k
 :clif k * 2.0
 :time k * 2.0
+toy_psd(100 Hz)
 :save {}
 ",
         png.display(),
         saved.display()
     ));
     assert!(ok, "{out}");
+    // Entries are evaluated without the loaded scenes, but with its modules.
+    assert!(out.contains("gw> toy_psd(100 Hz)\n"), "{out}");
     assert!(out.contains("loss = 0"), "the chirp at its true parameters has zero loss: {out}");
     assert!(out.contains("dloss/dmc = 0"), "{out}");
     assert!(out.contains("= sum %"), "IR dump: {out}");
@@ -203,6 +206,7 @@ let wave = sin(2.0 * pi * 3 Hz * t) * k
     let text = std::fs::read_to_string(&saved).expect("session saved");
     gwml::compile_str("session.gw", &text).expect("the saved session compiles");
     assert!(text.contains("let wave") && text.contains("param k"));
+    assert!(text.contains("scene chirp_fit {"), "the saved session keeps the loaded scene: {text}");
 }
 
 #[test]
