@@ -34,33 +34,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from generator_shape_sets import FS, N, SETS  # noqa: E402
-
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def real_fit_blips():
-    """A shape function drawing the held-out half of antiglitch's Blip fits."""
-    import csv
-
-    rows = csv.DictReader(open(os.path.join(ROOT, "lab/data/real_glitch_fits.csv")))
-    blips = [r for r in rows if r["label"] == "Blip" and r["ifo"] in ("H1", "L1")]
-    held_out = [(float(r["f0"]), float(r["gbw"])) for r in blips[1::2]]
-    asd = np.zeros(N // 2 + 1)
-    for r in csv.DictReader(open(os.path.join(ROOT, "lab/data/o3_asd.csv"))):
-        asd[int(r["frequency_hz"])] = float(r["asd_per_sqrt_hz"])
-    f = np.fft.rfftfreq(N, 1 / FS)
-    inband = asd > 0
-
-    def shape(rng, t):
-        f0, gbw = held_out[rng.integers(len(held_out))]
-        spectrum = np.zeros(N // 2 + 1, complex)
-        l = np.log(f[inband] / f0)
-        spectrum[inband] = np.exp(-0.5 * gbw * l * l) / asd[inband] * np.exp(1j * (rng.uniform(0, 2 * np.pi) - np.pi * f[inband]))
-        return np.fft.irfft(spectrum, N)
-
-    return shape
+from generator_shape_sets import FS, N, SETS, realfit  # noqa: E402
 
 
 def band_limited(s):
@@ -93,7 +67,7 @@ def main():
     snrs = [float(s) for s in a.snr.split(",")]
     t = np.arange(N) / FS
     rows, keys = [], []
-    sets = {"real-fit": real_fit_blips(), **SETS}
+    sets = {"real-fit": realfit, **SETS}
     for k, (name, shape) in enumerate(sets.items()):
         rng = np.random.default_rng(a.seed * 1000 + k)
         for snr in snrs:

@@ -12,7 +12,7 @@ gwml=${3:-target/release/gwml}
 mkdir -p "$out"
 : > "$out/log.txt"
 for seed in ${SEEDS:-11 12 13}; do
-    for set in ringdown asymmetric chirplet; do
+    for set in ${SETS_LIST:-ringdown asymmetric chirplet realfit}; do
         for kind in learned parametric; do
             echo "== $set, $kind, seed $seed" | tee -a "$out/log.txt"
             "$gwml" generator fit --family blip --kind "$kind" --examples "$sets/$set.npz" --holdout 0.3 \

@@ -14,11 +14,18 @@ in 15-30:
   chirplet  Gaussian envelope (sigma 10-60 ms) with a linear frequency
             sweep from f1 to f2, f1 log-uniform 50-300 Hz, f2 = f1 * 1.5-4
             (up or down at random)
+  realfit   real O3 Blips as antiglitch fitted them: a strain spectrum
+            exp(-gbw/2 ln^2(f/f0)) at one random phase, whitened by the
+            O3-like ASD of lab/data/o3_asd.csv; (f0, gbw) drawn from the
+            held-out half (odd positions) of the H1/L1 Blip fits in
+            lab/data/real_glitch_fits.csv, which the glitch benchmark's
+            training population never uses (see lab/src/synth/real_fits.rs)
 
 Usage: python3 scripts/generator_shape_sets.py OUT_DIR [--n 500] [--seed 1]
 Needs numpy.
 """
 import argparse
+import functools
 import os
 
 import numpy as np
@@ -64,7 +71,37 @@ def chirplet(rng, t):
     return np.exp(-0.5 * (u / sigma) ** 2) * np.sin(phase)
 
 
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+@functools.lru_cache(maxsize=None)
+def _real_fit_table():
+    import csv
+
+    rows = csv.DictReader(open(os.path.join(ROOT, "lab/data/real_glitch_fits.csv")))
+    blips = [r for r in rows if r["label"] == "Blip" and r["ifo"] in ("H1", "L1")]
+    held_out = [(float(r["f0"]), float(r["gbw"])) for r in blips[1::2]]
+    asd = np.zeros(N // 2 + 1)
+    for r in csv.DictReader(open(os.path.join(ROOT, "lab/data/o3_asd.csv"))):
+        asd[int(r["frequency_hz"])] = float(r["asd_per_sqrt_hz"])
+    return held_out, asd
+
+
+def realfit(rng, t):
+    held_out, asd = _real_fit_table()
+    f0, gbw = held_out[rng.integers(len(held_out))]
+    f = np.fft.rfftfreq(N, 1 / FS)
+    inband = asd > 0
+    t0, phi = rng.uniform(0.3, 0.7), rng.uniform(0, 2 * np.pi)
+    spectrum = np.zeros(N // 2 + 1, complex)
+    l = np.log(f[inband] / f0)
+    spectrum[inband] = np.exp(-0.5 * gbw * l * l) / asd[inband] * np.exp(1j * (phi - 2 * np.pi * f[inband] * t0))
+    return np.fft.irfft(spectrum, N)
+
+
 SETS = {"ringdown": ringdown, "asymmetric": asymmetric, "chirplet": chirplet}
+# Not in SETS (which scripts/blip_realism.py reads as stand-ins); written too.
+ALL_SETS = {**SETS, "realfit": realfit}
 
 
 def main():
@@ -75,7 +112,7 @@ def main():
     a = p.parse_args()
     os.makedirs(a.out, exist_ok=True)
     t = np.arange(N) / FS
-    for k, (name, shape) in enumerate(SETS.items()):
+    for k, (name, shape) in enumerate(ALL_SETS.items()):
         rng = np.random.default_rng(a.seed * 1000 + k)
         clean = np.empty((a.n, N))
         noisy = np.empty((a.n, N))
