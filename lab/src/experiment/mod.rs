@@ -7,7 +7,9 @@
 //!    thresholds (`lab/models/glitch/bank.gw`), no gradient training;
 //! 2. a 1-D CNN on the whitened strain (`lab/models/glitch/cnn.gw`);
 //! 3. the differentiable model: a trainable template bank feeding a small
-//!    network, trained end to end (`lab/models/glitch/template_net.gw`).
+//!    network, trained end to end (`lab/models/glitch/template_net.gw`);
+//!    and its ablation, the same model with the physics front end frozen at
+//!    its initial templates (only the head trains), at the reference size.
 //!
 //! Training sets of several sizes (prefixes of one seed's draw) give the
 //! learning curves; validation, test and the two shifted test sets (lower
@@ -134,12 +136,39 @@ struct Learner {
     source: &'static str,
     lr: f64,
     batch: usize,
+    /// Train only the `head` (the ablation: template params stay at their
+    /// initial values), and only at the reference size.
+    frozen_front_end: bool,
 }
 
-const LEARNERS: [Learner; 2] = [
-    Learner { key: "cnn", title: "CNN", source: CNN_SOURCE, lr: 3e-3, batch: 32 },
-    Learner { key: "template_net", title: "Differentiable template bank + head", source: TEMPLATE_NET_SOURCE, lr: 3e-3, batch: 32 },
+const LEARNERS: [Learner; 3] = [
+    Learner { key: "cnn", title: "CNN", source: CNN_SOURCE, lr: 3e-3, batch: 32, frozen_front_end: false },
+    Learner {
+        key: "template_net",
+        title: "Differentiable template bank + head",
+        source: TEMPLATE_NET_SOURCE,
+        lr: 3e-3,
+        batch: 32,
+        frozen_front_end: false,
+    },
+    Learner {
+        key: "template_net_frozen",
+        title: "Template bank frozen + head (ablation)",
+        source: TEMPLATE_NET_SOURCE,
+        lr: 3e-3,
+        batch: 32,
+        frozen_front_end: true,
+    },
 ];
+
+/// `source` with its `grad loss wrt [...]` list cut to `head`: the template
+/// params keep their declared values while the head trains.
+fn frozen_front_end(source: &str) -> Result<String, String> {
+    // The last one: the file's comments mention the statement too.
+    let start = source.rfind("grad loss wrt [").ok_or("the template net has no `grad loss wrt [...]`")? + "grad loss wrt [".len();
+    let end = start + source[start..].find(']').ok_or("unclosed `grad loss wrt [`")?;
+    Ok(format!("{}head{}", &source[..start], &source[end..]))
+}
 
 /// The test sets every method is scored on.
 struct TestSets {
@@ -200,7 +229,7 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
     let mut scored = Vec::new();
     scored.push(run_rules(plan, &train, &tests)?);
     for learner in &LEARNERS {
-        for &n in &plan.sizes {
+        for &n in plan.sizes.iter().filter(|n| !learner.frozen_front_end || **n == plan.reference) {
             for seed in 0..plan.seeds {
                 scored.push(run_learner(learner, plan, &train.head(n), &val, &tests, o.threads, seed)?);
             }
@@ -252,7 +281,8 @@ fn run_learner(
     let t0 = Instant::now();
     let n = train.examples().map_err(render)?;
     let epochs = plan.epochs(n, l.batch);
-    let model = Model::from_source(&format!("lab/models/glitch/{}.gw", l.key), l.source).map_err(render)?;
+    let source = if l.frozen_front_end { frozen_front_end(l.source)? } else { l.source.to_string() };
+    let model = Model::from_source(&format!("lab/models/glitch/{}.gw", l.key), &source).map_err(render)?;
     let scene = model.scene(None).map_err(render)?;
     let steps_per_epoch = n.div_ceil(l.batch) as u64;
     let opts = TrainOptions {
@@ -299,7 +329,11 @@ fn run_learner(
         .iter()
         .filter_map(|p| trainer.param(&p.name).map(|v| format!("{} = {v:.4} (from {:.4})", p.name, p.default.unwrap_or(f64::NAN))))
         .collect();
-    let trained_params = (!params.is_empty()).then(|| params.join(", "));
+    let trained_params = if l.frozen_front_end {
+        Some("template params frozen at their initial values; only the head trains".to_string())
+    } else {
+        (!params.is_empty()).then(|| params.join(", "))
+    };
     let mut confusions = Vec::new();
     for set in tests.all() {
         let predicted = trainer.predict_classes(set).map_err(render)?;
@@ -514,6 +548,17 @@ fn write_results(
 mod tests {
     use super::*;
 
+    /// The ablation's source trains only the head.
+    #[test]
+    fn the_frozen_front_end_trains_only_the_head() {
+        let frozen = frozen_front_end(TEMPLATE_NET_SOURCE).unwrap();
+        let model = Model::from_source("frozen.gw", &frozen).unwrap();
+        let scene = model.scene(None).unwrap();
+        assert!(scene.ir().grads.is_empty(), "no template param is differentiated: {:?}", scene.ir().grads);
+        assert!(!scene.ir().input_grads.is_empty(), "the head's weights are");
+        assert!(frozen_front_end("scene s {}").is_err());
+    }
+
     /// The whole pipeline at a toy size: every method trains and is scored
     /// on every test set, and every table and plot is written with its rows.
     #[test]
@@ -525,33 +570,48 @@ mod tests {
         let o = GlitchExperiment { quick: true, out: out.clone(), threads: 2 };
         run_plan(&o, &plan).unwrap();
         let read = |name: &str| std::fs::read_to_string(out.join(name)).unwrap();
-        // Rules, then each learner at the reference size (the largest),
-        // over two seeds (mean ± sd).
+        // Rules, then each learner and the ablation at the reference size
+        // (the largest), over two seeds (mean ± sd).
         let summary = read("summary.csv");
-        assert_eq!(summary.lines().count(), 1 + 3, "{summary}");
-        assert_eq!(summary.lines().filter(|l| l.contains(" ± ") && l.contains(",2,")).count(), 2, "{summary}");
+        assert_eq!(summary.lines().count(), 1 + 4, "{summary}");
+        assert_eq!(summary.lines().filter(|l| l.contains(" ± ") && l.contains(",2,")).count(), 3, "{summary}");
         assert!(summary.contains("Rule-based filtering") && summary.contains("CNN") && summary.contains("template bank"));
-        // Eight classes for each of the three methods.
-        assert_eq!(read("per_class.csv").lines().count(), 1 + 3 * 8);
+        // Eight classes for each of the four methods.
+        assert_eq!(read("per_class.csv").lines().count(), 1 + 4 * 8);
         // A row per true class for each method, a column per predicted class.
         let confusion = read("confusion.csv");
-        assert_eq!(confusion.lines().count(), 1 + 3 * 8);
+        assert_eq!(confusion.lines().count(), 1 + 4 * 8);
         assert!(confusion.lines().all(|l| l.split(',').count() == 3 + 8), "{confusion}");
         // A probe row per feature: energy, time of peak (all classes, short
         // ones), seven bands.
         assert_eq!(read("leak_probe.csv").lines().count(), 1 + 10);
         // Three test sets for each method.
-        assert_eq!(read("generalisation.csv").lines().count(), 1 + 3 * 3);
-        // Two sizes for each learner, each over two seeds.
+        assert_eq!(read("generalisation.csv").lines().count(), 1 + 4 * 3);
+        // Two sizes for each learner, the ablation at the reference size,
+        // each over two seeds.
         let curve = read("learning_curve.csv");
-        assert_eq!(curve.lines().count(), 1 + 2 * 2);
+        assert_eq!(curve.lines().count(), 1 + 2 * 2 + 1);
         assert!(curve.lines().skip(1).all(|l| l.contains(",2,")), "{curve}");
-        for png in ["learning_curve.png", "confusion_rules.png", "confusion_cnn.png", "confusion_template_net.png"] {
+        for png in [
+            "learning_curve.png",
+            "confusion_rules.png",
+            "confusion_cnn.png",
+            "confusion_template_net.png",
+            "confusion_template_net_frozen.png",
+        ] {
             let bytes = std::fs::read(out.join(png)).unwrap();
             assert!(bytes.starts_with(b"\x89PNG"), "{png} is not a PNG");
         }
         let readme = read("README.md");
         assert!(readme.contains("## Generalisation") && readme.contains("None: every template"), "{readme}");
+        // The ablation's template params stay where they start; the full
+        // model's move.
+        let learned =
+            |title: &str| readme.split(&format!("{title}:\n\n```\n")).nth(1).and_then(|r| r.split("```").next()).unwrap_or("").to_string();
+        let frozen = learned("Template bank frozen + head (ablation)");
+        assert!(frozen.contains("frozen at their initial values"), "{readme}");
+        let full = learned("Differentiable template bank + head");
+        assert!(full.contains("lf1 = ") && !full.contains("lf1 = 3.5550 (from 3.5550)"), "{readme}");
         let _ = std::fs::remove_dir_all(&out);
     }
 }
