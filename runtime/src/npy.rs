@@ -23,6 +23,19 @@ pub fn read(path: &Path) -> Result<NpyData, Error> {
     if shape.len() > 1 && shape.iter().filter(|d| **d > 1).count() > 1 {
         return Err(Error::Io(format!("{} has shape {shape:?}; gwml inputs are 1-D", path.display())));
     }
+    // The header's size against the bytes that follow it, before anything
+    // is allocated by it: a truncated or lying file is an error, not an
+    // out-of-memory abort.
+    let (values, item, dtype) = (npy.len(), npy.dtype().num_bytes(), npy.dtype());
+    let held = npy.into_inner().len() as u64;
+    if let Some(need) = item.and_then(|b| values.checked_mul(b as u64)) {
+        if need != held {
+            return Err(Error::Io(format!(
+                "{}: the header declares {values} values ({need} bytes) but {held} bytes of data follow it; the file is truncated or corrupt",
+                path.display()
+            )));
+        }
+    }
     if let Ok(v) = open()?.into_vec::<f64>() {
         return Ok(NpyData { values: v.into_iter().map(|x| C64::new(x, 0.0)).collect(), complex: false });
     }
@@ -35,7 +48,7 @@ pub fn read(path: &Path) -> Result<NpyData, Error> {
     if let Ok(v) = open()?.into_vec::<Complex<f32>>() {
         return Ok(NpyData { values: v.into_iter().map(|z| C64::new(z.re as f64, z.im as f64)).collect(), complex: true });
     }
-    Err(Error::Io(format!("{}: unsupported dtype {:?}; use float64, float32, complex128 or complex64", path.display(), npy.dtype())))
+    Err(Error::Io(format!("{}: unsupported dtype {dtype:?}; use float64, float32, complex128 or complex64", path.display())))
 }
 
 /// Writes a real array as float64.
@@ -62,5 +75,35 @@ mod tests {
         let p = dir.join("c.npy");
         write_complex(&p, &[C64::new(1.0, 2.0)]).unwrap();
         assert_eq!(read(&p).unwrap(), NpyData { values: vec![C64::new(1.0, 2.0)], complex: true });
+    }
+
+    /// A header claiming 10^12 values over 16 bytes of data, and a file cut
+    /// short, are errors naming the file and the mismatch (no allocation by
+    /// the header's size); a wrong magic is "not a .npy file".
+    #[test]
+    fn truncated_and_lying_files_are_clear_errors() {
+        let dir = std::env::temp_dir().join(format!("gwml-npy-bad-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let good = dir.join("good.npy");
+        write_real(&good, &[1.0, 2.0]).unwrap();
+        let bytes = std::fs::read(&good).unwrap();
+        let shape = bytes.windows(4).position(|w| w == b"(2,)").expect("a 1-D shape in the header");
+        let mut lying = bytes.clone();
+        // Same header length: "(2,)" becomes "(1000000000000,)", eating padding.
+        let claim = b"(1000000000000,)";
+        lying.splice(shape..shape + 4, claim.iter().copied());
+        let pad = lying[..].windows(claim.len() - 4).position(|w| w.iter().all(|b| *b == b' ')).unwrap();
+        lying.drain(pad..pad + claim.len() - 4);
+        let path = dir.join("lying.npy");
+        std::fs::write(&path, &lying).unwrap();
+        let err = read(&path).unwrap_err().to_string();
+        assert!(err.contains("lying.npy") && err.contains("declares 1000000000000 values"), "{err}");
+        let cut = dir.join("cut.npy");
+        std::fs::write(&cut, &bytes[..bytes.len() - 3]).unwrap();
+        let err = read(&cut).unwrap_err().to_string();
+        assert!(err.contains("cut.npy") && err.contains("13 bytes of data follow"), "{err}");
+        let magic = dir.join("magic.npy");
+        std::fs::write(&magic, b"PK\x03\x04 not numpy").unwrap();
+        assert!(read(&magic).unwrap_err().to_string().contains("is not a .npy file"));
     }
 }
