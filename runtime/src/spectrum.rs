@@ -234,6 +234,17 @@ mod tests {
         assert_eq!(s.psd_at(f64::INFINITY), 1.0);
     }
 
+    /// Each bad file is an error naming its line and value.
+    #[test]
+    fn bad_values_and_files_are_errors_naming_the_line() {
+        let err = |text: &str| Spectrum::parse(text, "f.txt", Kind::Psd).unwrap_err().to_string();
+        assert!(err("10 1e-46\n20 nan\n30 1e-46\n").contains("f.txt:2: the PSD value nan at 20 Hz must be positive and finite"));
+        assert!(err("10 -1e-46\n20 1e-46\n").contains("f.txt:1: the PSD value -1e-46 at 10 Hz must be positive"));
+        assert!(err("").contains("f.txt: a spectrum needs at least two points"));
+        assert!(err("\u{0}\u{1}\u{2}binary\n").contains("f.txt:1: expected two columns"));
+        assert!(err("10 1e-46\n5 1e-46\n").contains("f.txt:2: frequencies must increase strictly"));
+    }
+
     #[test]
     fn time_grids_are_refused() {
         let s = Spectrum::parse("10 4\n100 1\n", "t", Kind::Psd).unwrap();

@@ -26,13 +26,14 @@ pub mod rules;
 
 use crate::plot;
 use crate::render;
-use crate::synth::{glitches, GlitchOptions, GLITCH_CLASSES};
+use crate::synth::{glitches, glitches_with, real_fits, GlitchOptions, GLITCH_CLASSES};
 use gwml_runtime::dataset::Dataset;
 use gwml_runtime::optim::{Method, OptimConfig, Schedule};
 use gwml_runtime::train::{TrainOptions, Trainer};
 use gwml_runtime::Model;
 use indicatif::{ProgressBar, ProgressStyle};
 use metrics::{csv_table, markdown_table, percent, percent_spread, Confusion};
+use rand::SeedableRng;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -55,6 +56,7 @@ const VAL_SEED: u64 = 2;
 const TEST_SEED: u64 = 3;
 const LOW_SNR_SEED: u64 = 4;
 const SHIFTED_PSD_SEED: u64 = 5;
+const HELD_OUT_FITS_SEED: u64 = 6;
 
 /// The standard SNRs (each class's own range), and the one range of the
 /// low-SNR generalisation check.
@@ -175,14 +177,16 @@ struct TestSets {
     standard: Dataset,
     low_snr: Dataset,
     shifted_psd: Dataset,
+    /// Every Blip and Tomte from a held-out real fit (none in training).
+    held_out_fits: Dataset,
 }
 
 /// Names of the test sets, in [`TestSets::all`] order.
-const TEST_SET_NAMES: [&str; 3] = ["standard", "low SNR (5–12)", "shifted PSD (knee 60 Hz)"];
+const TEST_SET_NAMES: [&str; 4] = ["standard", "low SNR (5–12)", "shifted PSD (knee 60 Hz)", "Blips and Tomtes from held-out real fits"];
 
 impl TestSets {
-    fn all(&self) -> [&Dataset; 3] {
-        [&self.standard, &self.low_snr, &self.shifted_psd]
+    fn all(&self) -> [&Dataset; 4] {
+        [&self.standard, &self.low_snr, &self.shifted_psd, &self.held_out_fits]
     }
 }
 
@@ -212,7 +216,7 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
     std::fs::create_dir_all(&o.out).map_err(|e| format!("error: cannot create {}: {e}", o.out.display()))?;
     let largest = *plan.sizes.last().expect("at least one size");
 
-    eprintln!("drawing data: {largest} training, {} validation, 3 × {} test examples", plan.val, plan.test);
+    eprintln!("drawing data: {largest} training, {} validation, 4 × {} test examples", plan.val, plan.test);
     let draw = |n, seed, snr, psd_knee| glitches(&GlitchOptions { n, seed, snr, psd_knee, ..Default::default() }).map_err(render);
     let train = draw(largest, TRAIN_SEED, SNR, 0.0)?;
     let val = draw(plan.val, VAL_SEED, SNR, 0.0)?;
@@ -220,6 +224,11 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
         standard: draw(plan.test, TEST_SEED, SNR, 0.0)?,
         low_snr: draw(plan.test, LOW_SNR_SEED, LOW_SNR, 0.0)?,
         shifted_psd: draw(plan.test, SHIFTED_PSD_SEED, SNR, SHIFTED_PSD_KNEE)?,
+        held_out_fits: {
+            let mut shapes = rand_pcg::Pcg64Mcg::seed_from_u64(HELD_OUT_FITS_SEED);
+            let o = GlitchOptions { n: plan.test, seed: HELD_OUT_FITS_SEED, ..Default::default() };
+            glitches_with(&o, &mut |class| Ok(real_fits::draw_held_out(&mut shapes, class))).map_err(render)?
+        },
     };
     let data_seconds = start.elapsed().as_secs_f64();
     eprintln!("  ({data_seconds:.1} s)");
@@ -511,7 +520,8 @@ fn write_results(
         "Written by `{mode}` in {total:.0} s ({data_seconds:.0} s drawing data) on {} threads. Test sets of {} examples each \
          (eight classes drawn uniformly: {}); macro averages over the seven \
          classes other than None. Training sets are prefixes of one draw (seed {TRAIN_SEED}); validation seed {VAL_SEED}, \
-         test seed {TEST_SEED}, low-SNR test seed {LOW_SNR_SEED}, shifted-PSD test seed {SHIFTED_PSD_SEED}. Each learner is \
+         test seed {TEST_SEED}, low-SNR test seed {LOW_SNR_SEED}, shifted-PSD test seed {SHIFTED_PSD_SEED}, held-out-fits test seed \
+         {HELD_OUT_FITS_SEED} (every Blip and Tomte there from the real fits that training never draws). Each learner is \
          trained from {} seeds (initial weights and batch order) per size: tables give mean ± sd over them; per-class \
          tables, confusion matrices and learned values are the first seed's.\n",
         o.threads,
@@ -585,8 +595,8 @@ mod tests {
         // A probe row per feature: energy, time of peak (all classes, short
         // ones), seven bands.
         assert_eq!(read("leak_probe.csv").lines().count(), 1 + 10);
-        // Three test sets for each method.
-        assert_eq!(read("generalisation.csv").lines().count(), 1 + 4 * 3);
+        // Four test sets for each method.
+        assert_eq!(read("generalisation.csv").lines().count(), 1 + 4 * 4);
         // Two sizes for each learner, the ablation at the reference size,
         // each over two seeds.
         let curve = read("learning_curve.csv");

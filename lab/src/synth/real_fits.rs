@@ -135,6 +135,18 @@ pub fn draw<R: Rng>(rng: &mut R, class: usize) -> Option<Vec<f64>> {
     Some(whitened_shape(fit, rng.random_range(0.0..TAU), 0.5))
 }
 
+/// Always a Blip or Tomte shape from a random *held-out* fit
+/// ([`Half::Check`]) at a random phase, peaking mid-row; `None` for other
+/// classes: a test set of real morphologies no training row was drawn from.
+pub fn draw_held_out<R: Rng>(rng: &mut R, class: usize) -> Option<Vec<f64>> {
+    let held_out = fits(class, Half::Check);
+    if held_out.is_empty() {
+        return None;
+    }
+    let fit = held_out[rng.random_range(0..held_out.len())];
+    Some(whitened_shape(fit, rng.random_range(0.0..TAU), 0.5))
+}
+
 /// A seeded source of [`draw`]s on its own random stream (for callers
 /// whose other draws must not shift, as `gwml data strain`'s).
 pub struct RealShapes(rand_pcg::Pcg64Mcg);
@@ -153,6 +165,7 @@ impl RealShapes {
 
 #[cfg(test)]
 mod tests {
+    use super::super::population::WHISTLE;
     use super::*;
 
     /// The tables parse whole (942 H1 and L1 Blips and 635 Tomtes of
@@ -164,7 +177,7 @@ mod tests {
         assert_eq!(table().tomte.len(), 635);
         assert_eq!(table().asd.len(), BAND.1 - BAND.0 + 1);
         assert_eq!(fits(BLIP, Half::Train).len() + fits(BLIP, Half::Check).len(), 942);
-        assert!(fits(super::super::population::WHISTLE, Half::Train).is_empty());
+        assert!(fits(WHISTLE, Half::Train).is_empty());
     }
 
     /// A whitened Blip is short and peaks where antiglitch's whitened fits
@@ -199,5 +212,6 @@ mod tests {
         let real = (0..400).filter(|_| draw(&mut rng, BLIP).is_some()).count();
         assert!((160..=240).contains(&real), "{real} of 400 Blips took a real shape");
         assert!((0..100).all(|_| draw(&mut rng, super::super::population::KOI_FISH).is_none()));
+        assert!((0..50).all(|_| draw_held_out(&mut rng, TOMTE).is_some() && draw_held_out(&mut rng, WHISTLE).is_none()));
     }
 }
