@@ -41,7 +41,7 @@ const COMMANDS: &[(&str, &str)] = &[
     (":ir", ":ir EXPR                         the IR of an expression"),
     (":adjoint", ":adjoint EXPR wrt NAME[, ...]    forward and adjoint IR after optimisation"),
     (":clif", ":clif EXPR                       the Cranelift IR of its kernel"),
-    (":time", ":time EXPR                       median time of one evaluation"),
+    (":time", ":time EXPR [wrt NAME, ...]        median time of one evaluation (with the gradient)"),
     (":load", ":load FILE                       modules and scenes of a .gw file"),
     (":run", ":run SCENE [NAME=VALUE ...]      run a loaded scene"),
     (":save", ":save FILE                       write the session as a .gw file"),
@@ -465,18 +465,26 @@ impl Repl {
             "ir" => print!("{}", gwml::compiler::driver::ir_text(&self.scene(&format!("    output {VALUE} = {rest}"))?.pipeline.pruned)),
             "clif" => print!("{}", self.scene(&format!("    output {VALUE} = {rest}"))?.forward_kernel().clif),
             "time" => {
-                let scene = self.scene(&format!("    output {VALUE} = {rest}"))?;
+                // `:time EXPR wrt NAME, ...` times the value and its gradient.
+                let (expr, wrt) = match rest.rsplit_once(" wrt ") {
+                    Some((e, w)) => (e, Some(w.trim().trim_start_matches('[').trim_end_matches(']'))),
+                    None => (rest, None),
+                };
+                let grad = wrt.map(|w| format!("\n    grad {VALUE} wrt [{w}]")).unwrap_or_default();
+                let scene = self.scene(&format!("    output {VALUE} = {expr}{grad}"))?;
                 let mut run = scene.bind();
-                run.forward().map_err(|e| self.render(e))?;
+                let once = |run: &mut gwml::Run| if wrt.is_some() { run.value_and_grad() } else { run.forward() }.map(|_| ());
+                once(&mut run).map_err(|e| self.render(e))?;
                 let mut times: Vec<f64> = Vec::new();
                 let start = Instant::now();
                 while times.len() < 5 || (start.elapsed().as_secs_f64() < 0.5 && times.len() < 10_000) {
                     let t = Instant::now();
-                    run.forward().map_err(|e| self.render(e))?;
+                    once(&mut run).map_err(|e| self.render(e))?;
                     times.push(t.elapsed().as_secs_f64());
                 }
                 times.sort_by(f64::total_cmp);
-                println!("median {} over {} runs", fmt_time(times[times.len() / 2]), times.len());
+                let what = if wrt.is_some() { "value and gradient" } else { "value" };
+                println!("median {} over {} runs ({what})", fmt_time(times[times.len() / 2]), times.len());
             }
             "load" => {
                 let text = std::fs::read_to_string(rest).map_err(|e| format!("error: cannot read {rest}: {e}\n"))?;
