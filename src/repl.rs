@@ -441,8 +441,7 @@ impl Repl {
                 println!("  Definitions: let, param, grid, input, module, use. Anything else is evaluated.");
             }
             "grad" | "adjoint" => {
-                let (expr, wrt) = rest.rsplit_once(" wrt ").ok_or_else(|| format!("error: usage: :{name} EXPR wrt NAME[, NAME...]\n"))?;
-                let wrt = wrt.trim().trim_start_matches('[').trim_end_matches(']');
+                let (expr, wrt) = split_wrt(rest).ok_or_else(|| format!("error: usage: :{name} EXPR wrt NAME[, NAME...]\n"))?;
                 let scene = self.scene(&format!("    output {VALUE} = {expr}\n    grad {VALUE} wrt [{wrt}]"))?;
                 if name == "adjoint" {
                     print!("{}", gwml::compiler::driver::ir_text(&scene.pipeline.optimized));
@@ -466,8 +465,8 @@ impl Repl {
             "clif" => print!("{}", self.scene(&format!("    output {VALUE} = {rest}"))?.forward_kernel().clif),
             "time" => {
                 // `:time EXPR wrt NAME, ...` times the value and its gradient.
-                let (expr, wrt) = match rest.rsplit_once(" wrt ") {
-                    Some((e, w)) => (e, Some(w.trim().trim_start_matches('[').trim_end_matches(']'))),
+                let (expr, wrt) = match split_wrt(rest) {
+                    Some((e, w)) => (e, Some(w)),
                     None => (rest, None),
                 };
                 let grad = wrt.map(|w| format!("\n    grad {VALUE} wrt [{w}]")).unwrap_or_default();
@@ -506,7 +505,7 @@ impl Repl {
                     .scene_with(Some(scene_name), Options { precision: self.session.precision, ..Default::default() })
                     .map_err(|e| self.render(e))?;
                 let mut run = scene.bind();
-                for kv in split_assignments(&parts.collect::<Vec<_>>().join(" ")) {
+                for kv in split_assignments(parts) {
                     let (k, v) = kv.split_once('=').ok_or_else(|| format!("error: expected NAME=VALUE, got `{kv}`\n"))?;
                     run.param_quantity(k.trim(), v).map_err(|e| self.render(e))?;
                 }
@@ -643,11 +642,18 @@ impl Repl {
     }
 }
 
+/// `EXPR wrt NAME, ...` (the names optionally in brackets) as the
+/// expression and the names.
+fn split_wrt(text: &str) -> Option<(&str, &str)> {
+    let (expr, wrt) = text.rsplit_once(" wrt ")?;
+    Some((expr, wrt.trim().trim_start_matches('[').trim_end_matches(']')))
+}
+
 /// `NAME=VALUE` assignments separated by spaces, where a value may carry a
 /// unit after a space (`tc=2 ms mc=30 Msun`).
-fn split_assignments(text: &str) -> Vec<String> {
+fn split_assignments<'a>(words: impl Iterator<Item = &'a str>) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
-    for word in text.split_whitespace() {
+    for word in words {
         match out.last_mut() {
             Some(last) if !word.contains('=') => {
                 last.push(' ');

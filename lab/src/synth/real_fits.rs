@@ -82,15 +82,40 @@ fn table() -> &'static Table {
     })
 }
 
-/// The real fits of `class` (Blip and Tomte have them) in `half`.
-pub fn fits(class: usize, half: Half) -> Vec<Fit> {
-    let all = match class {
+/// Every LIGO fit of `class`, in file order (empty but for Blip and Tomte).
+fn class_fits(class: usize) -> &'static [Fit] {
+    match class {
         BLIP => &table().blip,
         TOMTE => &table().tomte,
-        _ => return Vec::new(),
-    };
-    let first = if half == Half::Train { 0 } else { 1 };
-    all.iter().skip(first).step_by(2).copied().collect()
+        _ => &[],
+    }
+}
+
+impl Half {
+    /// Position of this half's first fit (the halves alternate).
+    fn first(self) -> usize {
+        match self {
+            Half::Train => 0,
+            Half::Check => 1,
+        }
+    }
+}
+
+/// The real fits of `class` (Blip and Tomte have them) in `half`.
+pub fn fits(class: usize, half: Half) -> Vec<Fit> {
+    class_fits(class).iter().skip(half.first()).step_by(2).copied().collect()
+}
+
+/// A random fit of `class` in `half`, whitened at a random phase and
+/// peaking mid-row; `None` when the half has none.
+fn random_shape<R: Rng>(rng: &mut R, class: usize, half: Half) -> Option<Vec<f64>> {
+    let all = class_fits(class);
+    let count = all.len().saturating_sub(half.first()).div_ceil(2);
+    if count == 0 {
+        return None;
+    }
+    let fit = all[half.first() + 2 * rng.random_range(0..count)];
+    Some(whitened_shape(fit, rng.random_range(0.0..TAU), 0.5))
 }
 
 /// The whitened shape of a fit in a 1 s row at 4096 Hz: the log-Gaussian
@@ -107,7 +132,8 @@ pub fn whitened_shape(fit: Fit, phi: f64, t0: f64) -> Vec<f64> {
         *bin = Complex64::from_polar(amplitude, phi - 2.0 * PI * f * t0);
     }
     let mut out = vec![0.0; SAMPLES];
-    let ifft = RealFftPlanner::<f64>::new().plan_fft_inverse(SAMPLES);
+    static IFFT: OnceLock<std::sync::Arc<dyn realfft::ComplexToReal<f64>>> = OnceLock::new();
+    let ifft = IFFT.get_or_init(|| RealFftPlanner::<f64>::new().plan_fft_inverse(SAMPLES));
     // DC and Nyquist are outside the band, so zero: the transform cannot fail.
     if ifft.process(&mut spectrum, &mut out).is_err() {
         return vec![0.0; SAMPLES];
@@ -123,28 +149,17 @@ pub const REAL_SHARE: f64 = 0.5;
 /// training-half fit at a random phase, peaking mid-row; `None` for other
 /// classes and the other draws.
 pub fn draw<R: Rng>(rng: &mut R, class: usize) -> Option<Vec<f64>> {
-    let all = match class {
-        BLIP => &table().blip,
-        TOMTE => &table().tomte,
-        _ => return None,
-    };
-    if all.is_empty() || !rng.random_bool(REAL_SHARE) {
+    if class_fits(class).is_empty() || !rng.random_bool(REAL_SHARE) {
         return None;
     }
-    let fit = all[2 * rng.random_range(0..all.len().div_ceil(2))];
-    Some(whitened_shape(fit, rng.random_range(0.0..TAU), 0.5))
+    random_shape(rng, class, Half::Train)
 }
 
 /// Always a Blip or Tomte shape from a random *held-out* fit
 /// ([`Half::Check`]) at a random phase, peaking mid-row; `None` for other
 /// classes: a test set of real morphologies no training row was drawn from.
 pub fn draw_held_out<R: Rng>(rng: &mut R, class: usize) -> Option<Vec<f64>> {
-    let held_out = fits(class, Half::Check);
-    if held_out.is_empty() {
-        return None;
-    }
-    let fit = held_out[rng.random_range(0..held_out.len())];
-    Some(whitened_shape(fit, rng.random_range(0.0..TAU), 0.5))
+    random_shape(rng, class, Half::Check)
 }
 
 /// A seeded source of [`draw`]s on its own random stream (for callers
