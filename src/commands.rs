@@ -458,13 +458,27 @@ fn num(x: f64) -> String {
 
 /// `gwml tradeoff`.
 pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
-    use gwml_lab::tradeoff::{all_configs, csv, sweep, table, with_knob_sweeps, Config, Settings};
+    use gwml_lab::tradeoff::{all_configs, csv, sweep, table, with_knob_sweeps, with_multiband, Config, Settings, DEFAULT_MULTIBAND};
     let model = Model::from_file(&a.file).map_err(render)?;
+    // Multibanding is swept by default only where it applies: a scene
+    // with a waveform phase over a grid (it is a no-op elsewhere).
+    let multiband = if a.multiband.is_empty() {
+        let probe = Options { multiband: Some(DEFAULT_MULTIBAND[2]), ..Default::default() };
+        let bands = model.scene_with(a.scene.as_deref(), probe).map_err(render)?.forward_ir().bands.len();
+        if bands > 0 {
+            DEFAULT_MULTIBAND.to_vec()
+        } else {
+            vec![gwml::compiler::ir::Multiband::Off]
+        }
+    } else {
+        a.multiband.clone()
+    };
     let configs: Vec<Config> = all_configs()
         .into_iter()
         .filter(|c| a.precision.is_empty() || a.precision.contains(&c.precision))
         .filter(|c| a.math.is_empty() || a.math.contains(&c.math))
         .collect();
+    let configs = with_multiband(configs, &multiband);
     let mut sweeps = Vec::new();
     for s in &a.sweep {
         let (name, values) = knob_assignment(s, "--sweep")?;
@@ -518,7 +532,8 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
             .iter()
             .map(|r| {
                 let knobs: serde_json::Map<String, serde_json::Value> = r.config.knobs.iter().map(|(n, v)| (n.clone(), json!(v))).collect();
-                json!({"precision": r.config.precision.to_string(), "math": r.config.math.to_string(), "knobs": knobs, "forward_us": r.forward_us,
+                json!({"precision": r.config.precision.to_string(), "math": r.config.math.to_string(),
+                       "multiband": r.config.multiband.to_string(), "knobs": knobs, "forward_us": r.forward_us,
                        "grad_us": r.grad_us, "output_error": r.output_error, "grad_error": r.grad_error, "mismatch": r.mismatch, "pareto": r.pareto,
                        "failure": r.failure})
             })

@@ -10,7 +10,7 @@ mod scan;
 mod strain_input;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use gwml::compiler::ir::{MathMode, Precision, UnknownSetting};
+use gwml::compiler::ir::{MathMode, Multiband, Precision, UnknownSetting};
 use gwml_lab::experiment;
 use gwml_lab::generator::{self, GeneratorCommand};
 use gwml_lab::synth::GlitchClass;
@@ -454,6 +454,11 @@ pub struct TradeoffArgs {
     /// Math modes to sweep, comma-separated (exact, fast, fastest) [default: all].
     #[arg(long, value_name = "MATH,...", value_delimiter = ',', value_parser = setting::<MathMode>)]
     pub math: Vec<MathMode>,
+    /// Multibanding tolerances to sweep, comma-separated: `off` or the
+    /// largest phase error in radians (`off,1e-3`) [default: off, 1e-2,
+    /// 1e-3 and 1e-4 for scenes with a waveform phase over a grid, else off].
+    #[arg(long, value_name = "TOL,...", value_delimiter = ',', value_parser = setting::<Multiband>)]
+    pub multiband: Vec<Multiband>,
     /// Also sweep one of the scene's `knob` declarations over comma-separated
     /// values, NAME=V1,V2,... (`--sweep df="0.25 Hz,0.5 Hz"`,
     /// `--sweep pn_order=4,6`); repeatable (every combination is measured).

@@ -1,7 +1,7 @@
 //! The driver: the stage order, and nothing else.
 //!
 //! parse (+ imports) → resolve modules → check + lower each scene →
-//! prune → adjoint → simplify → specialise → rescale → (codegen, in
+//! prune → multiband → adjoint → simplify → specialise → rescale → (codegen, in
 //! [`crate::codegen`]). Every composition of passes is here
 //! ([`GRADIENT_PASSES`], [`FORWARD_PASSES`]); after each pass the IR is
 //! verified in debug builds, or when asked ([`Options::verify`],
@@ -96,6 +96,8 @@ pub struct Options {
     pub precision: Option<Precision>,
     /// Overrides the scene's `math` setting.
     pub math: Option<crate::ir::MathMode>,
+    /// Overrides the scene's `multiband` setting.
+    pub multiband: Option<crate::ir::Multiband>,
     /// Overrides of the scene's `knob` values: name and value as source text
     /// (`("df", "0.25 Hz")`); the scene is checked and lowered again with them.
     pub knobs: Vec<(String, String)>,
@@ -130,7 +132,7 @@ pub struct Stats {
 pub struct ScenePipeline {
     /// As checked and lowered (all definitions).
     pub checked: Function,
-    /// Pruned to what outputs need.
+    /// Pruned to what outputs need (and multibanded, when the scene asks).
     pub pruned: Function,
     /// With adjoints appended.
     pub adjoint: Function,
@@ -266,6 +268,9 @@ impl Program {
         if let Some(p) = opts.precision {
             checked.precision = p;
         }
+        if let Some(m) = opts.multiband {
+            checked.multiband = m;
+        }
         if let Some(keep) = &opts.outputs {
             if let Some(unknown) = keep.iter().find(|k| !checked.outputs.iter().any(|o| &o.name == *k)) {
                 return Err(PipelineError::Scene(format!("scene `{}` has no output `{unknown}`", checked.name)));
@@ -295,8 +300,9 @@ fn verify_after_passes(opts: &Options) -> bool {
 type Pass = (&'static str, fn(&Function) -> Function);
 
 /// The passes from the checked IR to what codegen compiles, in order.
-const GRADIENT_PASSES: [Pass; 5] = [
+const GRADIENT_PASSES: [Pass; 6] = [
     ("prune", passes::prune),
+    ("multiband", passes::multiband),
     ("adjoint", passes::adjoint),
     ("simplify", passes::simplify),
     ("specialise", passes::specialise),
@@ -304,6 +310,7 @@ const GRADIENT_PASSES: [Pass; 5] = [
 ];
 
 /// The passes of a forward-only kernel: as [`GRADIENT_PASSES`] without the adjoint.
+/// It starts from [`ScenePipeline::pruned`], which is already multibanded.
 const FORWARD_PASSES: [Pass; 4] =
     [("prune", passes::prune), ("simplify", passes::simplify), ("specialise", passes::specialise), ("rescale", passes::rescale)];
 
@@ -332,8 +339,9 @@ fn run_pass((name, pass): Pass, input: &Function, verify: bool, times: &mut Pass
 /// keeping the IR after pruning, after the adjoint and at the end.
 pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, PipelineError> {
     let mut times = PassTimes::default();
-    let [prune, adjoint, simplify, specialise, rescale] = GRADIENT_PASSES;
+    let [prune, multiband, adjoint, simplify, specialise, rescale] = GRADIENT_PASSES;
     let pruned = run_pass(prune, &checked, verify, &mut times)?;
+    let pruned = run_pass(multiband, &pruned, verify, &mut times)?;
     let adjoint = run_pass(adjoint, &pruned, verify, &mut times)?;
     let simplified = run_pass(simplify, &adjoint, verify, &mut times)?;
     let specialised = run_pass(specialise, &simplified, verify, &mut times)?;

@@ -17,7 +17,7 @@
 //! its grid) is not compared; scalars (a likelihood) and gradients still are.
 
 use crate::timing::median_us;
-use gwml_compiler::ir::{MathMode, Precision};
+use gwml_compiler::ir::{MathMode, Multiband, Precision};
 use gwml_compiler::Options;
 use gwml_runtime::{Error, Model, Outputs, Run, Value};
 use num_complex::Complex64 as C64;
@@ -30,6 +30,8 @@ pub struct Config {
     pub precision: Precision,
     /// Transcendental functions.
     pub math: MathMode,
+    /// Multibanding of the scene's waveform phases.
+    pub multiband: Multiband,
     /// Values of the scene's own `knob`s, as source text (`("df", "0.25 Hz")`);
     /// the knobs not named keep the scene's values.
     pub knobs: Vec<(String, String)>,
@@ -38,7 +40,7 @@ pub struct Config {
 impl Config {
     /// f64, exact math, the scene's own knob values: what every row is measured against.
     pub fn reference() -> Config {
-        Config { precision: Precision::F64, math: MathMode::Exact, knobs: Vec::new() }
+        Config { precision: Precision::F64, math: MathMode::Exact, multiband: Multiband::Off, knobs: Vec::new() }
     }
 
     /// The scene knobs as `df=0.25 Hz pn_order=5` (empty for the scene's own).
@@ -46,10 +48,11 @@ impl Config {
         self.knobs.iter().map(|(n, v)| format!("{n}={v}")).collect::<Vec<_>>().join(" ")
     }
 
-    /// `f64 exact df=0.25 Hz`: the knobs in one phrase.
+    /// `f64 exact multiband=1e-3 df=0.25 Hz`: the knobs in one phrase.
     pub fn label(&self) -> String {
         let k = self.knob_text();
-        format!("{} {}{}{k}", self.precision, self.math, if k.is_empty() { "" } else { " " })
+        let mb = if self.multiband == Multiband::Off { String::new() } else { format!(" multiband={}", self.multiband) };
+        format!("{} {}{mb}{}{k}", self.precision, self.math, if k.is_empty() { "" } else { " " })
     }
 }
 
@@ -120,15 +123,25 @@ impl Row {
     }
 }
 
-/// Every precision × math combination.
+/// Every precision × math combination, multibanding off.
 pub fn all_configs() -> Vec<Config> {
     let mut v = Vec::new();
     for precision in [Precision::F64, Precision::Mixed, Precision::F32] {
         for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
-            v.push(Config { precision, math, knobs: Vec::new() });
+            v.push(Config { precision, math, multiband: Multiband::Off, knobs: Vec::new() });
         }
     }
     v
+}
+
+/// The multibanding tolerances `gwml tradeoff` sweeps by default (radians
+/// of phase error; the mismatch is below half the square).
+pub const DEFAULT_MULTIBAND: [Multiband; 4] =
+    [Multiband::Off, Multiband::Tolerance(1e-2), Multiband::Tolerance(1e-3), Multiband::Tolerance(1e-4)];
+
+/// Every configuration of `configs` with every multibanding setting of `settings`.
+pub fn with_multiband(configs: Vec<Config>, settings: &[Multiband]) -> Vec<Config> {
+    configs.into_iter().flat_map(|c| settings.iter().map(move |&multiband| Config { multiband, ..c.clone() })).collect()
 }
 
 /// Every configuration of `configs` combined with every combination of the
@@ -213,6 +226,7 @@ pub fn sweep(
         let options = Options {
             precision: Some(config.precision),
             math: Some(config.math),
+            multiband: Some(config.multiband),
             knobs: config.knobs.clone(),
             outputs: None,
             ..Options::default()
@@ -351,6 +365,7 @@ fn opt(x: Option<f64>, f: impl Fn(f64) -> String) -> String {
 pub fn table(rows: &[Row]) -> String {
     let base = rows.first().filter(|r| r.failure.is_none()).map(Row::time_us);
     let with_knobs = rows.iter().any(|r| !r.config.knobs.is_empty());
+    let with_bands = rows.iter().any(|r| r.config.multiband != Multiband::Off);
     let mut sorted: Vec<&Row> = rows.iter().collect();
     sorted.sort_by(|a, b| a.failure.is_some().cmp(&b.failure.is_some()).then(a.time_us().total_cmp(&b.time_us())));
     let knobs = |r: &Row| {
@@ -360,25 +375,35 @@ pub fn table(rows: &[Row]) -> String {
             String::new()
         }
     };
+    let bands = |r: &Row| if with_bands { format!(" {} |", r.config.multiband) } else { String::new() };
     let mut s = String::new();
     let (kh, kr) = if with_knobs { (" knobs |", "---|") } else { ("", "") };
+    let (bh, br) = if with_bands { (" multiband |", "---|") } else { ("", "") };
     let _ = writeln!(
         s,
-        "| pareto | precision | math |{kh} forward µs | value+grad µs | speed-up | output rel. err | grad rel. err | mismatch |"
+        "| pareto | precision | math |{bh}{kh} forward µs | value+grad µs | speed-up | output rel. err | grad rel. err | mismatch |"
     );
-    let _ = writeln!(s, "|---|---|---|{kr}---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---|---|---|{br}{kr}---:|---:|---:|---:|---:|---:|");
     for r in sorted {
         if let Some(f) = &r.failure {
-            let _ =
-                writeln!(s, "|  | {} | {} |{} failed: {} | | | | | |", r.config.precision, r.config.math, knobs(r), f.replace('|', "/"));
+            let _ = writeln!(
+                s,
+                "|  | {} | {} |{}{} failed: {} | | | | | |",
+                r.config.precision,
+                r.config.math,
+                bands(r),
+                knobs(r),
+                f.replace('|', "/")
+            );
             continue;
         }
         let _ = writeln!(
             s,
-            "| {} | {} | {} |{} {:.1} | {} | {} | {:.1e} | {} | {} |",
+            "| {} | {} | {} |{}{} {:.1} | {} | {} | {:.1e} | {} | {} |",
             if r.pareto { "*" } else { "" },
             r.config.precision,
             r.config.math,
+            bands(r),
             knobs(r),
             r.forward_us,
             opt(r.grad_us, |t| format!("{t:.1}")),
@@ -393,14 +418,15 @@ pub fn table(rows: &[Row]) -> String {
 
 /// The rows as CSV with a header line.
 pub fn csv(rows: &[Row]) -> String {
-    let mut s = String::from("precision,math,knobs,forward_us,grad_us,output_error,grad_error,mismatch,pareto,failure\n");
+    let mut s = String::from("precision,math,multiband,knobs,forward_us,grad_us,output_error,grad_error,mismatch,pareto,failure\n");
     let o = |x: Option<f64>| x.map_or(String::new(), |v| format!("{v:e}"));
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},\"{}\",{:e},{},{:e},{},{},{},\"{}\"",
+            "{},{},{},\"{}\",{:e},{},{:e},{},{},{},\"{}\"",
             r.config.precision,
             r.config.math,
+            r.config.multiband,
             r.config.knob_text(),
             r.forward_us,
             o(r.grad_us),

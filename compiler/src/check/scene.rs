@@ -47,11 +47,17 @@ impl<'a> Checker<'a> {
                         Ok(m) => func.math = m,
                         Err(e) => self.error(setting_error(e)),
                     },
+                    "multiband" => match value.node.parse() {
+                        Ok(m) => func.multiband = m,
+                        Err(e) => self.error(setting_error(e)),
+                    },
                     other => {
                         let mut d = Diagnostic::error(name.span, format!("unknown scene setting `{other}`")).with_label("not a knob");
-                        d = match did_you_mean(other, ["precision", "math"]) {
+                        d = match did_you_mean(other, ["precision", "math", "multiband"]) {
                             Some(s) => d.with_help(format!("did you mean `{s}`?")),
-                            None => d.with_help("the knobs are `precision: f64 | f32 | mixed` and `math: exact | fast | fastest`"),
+                            None => d.with_help(
+                                "the settings are `precision: f64 | f32 | mixed`, `math: exact | fast | fastest` and `multiband: off | TOLERANCE`",
+                            ),
                         };
                         self.error(d);
                     }

@@ -1,6 +1,7 @@
 //! The kernel's calling convention ([`Layout`]: its buffers and scalar slots) and the compiled [`Kernel`].
 
 use crate::ir::*;
+use crate::kernels::band::BandPlan;
 use crate::kernels::dft::DftPlan;
 use cranelift_jit::JITModule;
 use std::fmt;
@@ -110,6 +111,7 @@ pub(super) enum PlanBox {
     F64(Box<DftPlan<f64>>),
     F32(Box<DftPlan<f32>>),
     Tensor(Box<TensorOp>),
+    Band(Box<BandPlan>),
 }
 
 impl PlanBox {
@@ -124,7 +126,7 @@ impl PlanBox {
         match self {
             PlanBox::F64(p) => p.work_floats(),
             PlanBox::F32(p) => p.work_floats(),
-            PlanBox::Tensor(_) => 0,
+            PlanBox::Tensor(_) | PlanBox::Band(_) => 0,
         }
     }
 
@@ -133,6 +135,7 @@ impl PlanBox {
             PlanBox::F64(p) => &**p as *const DftPlan<f64> as i64,
             PlanBox::F32(p) => &**p as *const DftPlan<f32> as i64,
             PlanBox::Tensor(t) => &**t as *const TensorOp as i64,
+            PlanBox::Band(b) => &**b as *const BandPlan as i64,
         }
     }
 }

@@ -243,7 +243,7 @@ impl Gen<'_> {
                 };
                 Cv::real(x)
             }
-            Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) => {
+            Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) | Op::Band(..) => {
                 let x = self.load_lanes(self.operand_buffer(v), lc.index, inst.ty.elem == Elem::Complex);
                 self.cast_cv(x, ty)
             }

@@ -73,6 +73,19 @@ impl Gen<'_> {
                 let f = self.import(if self.storage == types::F32 { "gwml_tensor_f32" } else { "gwml_tensor_f64" })?;
                 (f, vec![plan, self.bufs[self.operand_buffer(a)], self.bufs[self.operand_buffer(b)], out])
             }
+            // Band calls read and write each buffer in its own precision
+            // (in mixed precision a phase and its `cis` stay f64).
+            Op::Band(_, _, a) => {
+                let wide = |buf: usize| self.layout.buffers[buf].precision == Precision::F64;
+                let name = match (wide(self.operand_buffer(a)), wide(self.sched.stored[&d])) {
+                    (true, true) => "gwml_band_f64",
+                    (false, false) => "gwml_band_f32",
+                    (true, false) => "gwml_band_f64_f32",
+                    (false, true) => "gwml_band_f32_f64",
+                };
+                let f = self.import(name)?;
+                (f, vec![plan, self.bufs[self.operand_buffer(a)], out])
+            }
             _ => unreachable!("only library calls are scheduled as calls"),
         };
         self.b.ins().call(f, &args);
@@ -492,7 +505,7 @@ impl Gen<'_> {
             }
             cost += if inst.ty.elem == Elem::Complex { 2 } else { 1 };
             match inst.op {
-                Op::GridCoord(_) | Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) => {}
+                Op::GridCoord(_) | Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) | Op::Band(..) => {}
                 _ if self.reloaded(i, self.sched.loops[l].0) => {}
                 Op::Unary(UnOp::Neg | UnOp::Abs | UnOp::Re | UnOp::Im | UnOp::Conj | UnOp::Abs2 | UnOp::ToComplex, a) => {
                     stack.push(a.index())

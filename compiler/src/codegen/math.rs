@@ -3,6 +3,7 @@
 use super::mathlib::SlowPath;
 use super::{CodegenError, Gen};
 use crate::ir::*;
+use crate::kernels::band;
 use crate::kernels::dft::{gwml_dft_f32, gwml_dft_f64};
 use crate::kernels::tensor::{gwml_tensor_f32, gwml_tensor_f64};
 use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, Signature, StackSlotData, StackSlotKind};
@@ -65,6 +66,10 @@ pub(super) fn libm_symbols() -> Vec<(&'static str, *const u8)> {
         ("gwml_dft_f32", gwml_dft_f32 as *const u8),
         ("gwml_tensor_f64", gwml_tensor_f64 as *const u8),
         ("gwml_tensor_f32", gwml_tensor_f32 as *const u8),
+        ("gwml_band_f64", band::gwml_band_f64 as *const u8),
+        ("gwml_band_f32", band::gwml_band_f32 as *const u8),
+        ("gwml_band_f64_f32", band::gwml_band_f64_f32 as *const u8),
+        ("gwml_band_f32_f64", band::gwml_band_f32_f64 as *const u8),
     ]
 }
 
@@ -80,6 +85,11 @@ impl Gen<'_> {
             // (plan, input, output, work): see `dft::gwml_dft_f64`;
             // (op, a, b, output): see `tensor::gwml_tensor_f64`.
             for _ in 0..4 {
+                sig.params.push(AbiParam::new(self.ptr));
+            }
+        } else if name.starts_with("gwml_band_") {
+            // (plan, input, output): see `band::gwml_band_f64`.
+            for _ in 0..3 {
                 sig.params.push(AbiParam::new(self.ptr));
             }
         } else if base == "sincos" {

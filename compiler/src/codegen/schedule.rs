@@ -2,6 +2,7 @@
 
 use super::abi::{BufferInfo, BufferKind, Layout, PlanBox};
 use crate::ir::*;
+use crate::kernels::band::BandPlan;
 use std::collections::HashMap;
 
 /// Per-value scheduling decisions.
@@ -64,6 +65,12 @@ fn on_demand(op: &Op) -> bool {
 
 /// Ops computed by a library call on whole buffers, between fused loops.
 fn is_call(op: &Op) -> bool {
+    matches!(op, Op::Dft(..) | Op::Tensor(..) | Op::Band(..))
+}
+
+/// Library calls whose buffers are all in the storage precision (band
+/// calls take each buffer in its own).
+fn in_storage_precision(op: &Op) -> bool {
     matches!(op, Op::Dft(..) | Op::Tensor(..))
 }
 
@@ -77,7 +84,7 @@ pub(super) fn schedule(func: &Function, wide: &[bool], layout: &mut Layout, plan
     let storage = func.precision.storage();
     // Library calls read and write their buffers in the storage precision.
     let call_operands: std::collections::HashSet<usize> =
-        func.insts.iter().filter(|i| is_call(&i.op)).flat_map(|i| i.op.operands()).map(|v| v.index()).collect();
+        func.insts.iter().filter(|i| in_storage_precision(&i.op)).flat_map(|i| i.op.operands()).map(|v| v.index()).collect();
     let mut epoch = vec![0u32; n];
     for (i, inst) in func.insts.iter().enumerate() {
         epoch[i] = match inst.op {
@@ -139,7 +146,7 @@ pub(super) fn schedule(func: &Function, wide: &[bool], layout: &mut Layout, plan
             return;
         }
         let ty = func.insts[v].ty;
-        let kept_wide = wide[v] && !call_operands.contains(&v) && !is_call(&func.insts[v].op);
+        let kept_wide = wide[v] && !call_operands.contains(&v) && !in_storage_precision(&func.insts[v].op);
         let precision = if kept_wide { Precision::F64 } else { storage };
         layout.buffers.push(BufferInfo { kind, len: func.len_of(ty.shape), complex: ty.elem == Elem::Complex, precision });
         stored.insert(v, layout.buffers.len() - 1);
@@ -183,6 +190,7 @@ pub(super) fn schedule(func: &Function, wide: &[bool], layout: &mut Layout, plan
                 PlanBox::new(dft, func.len_of(time), storage)
             }
             Op::Tensor(t, ..) => PlanBox::Tensor(Box::new(t)),
+            Op::Band(op, n, _) => PlanBox::Band(Box::new(BandPlan { op, nodes: func.bands[n as usize].nodes.clone() })),
             _ => unreachable!("only library calls are listed"),
         };
         let work = (plan.work_floats() > 0).then(|| {

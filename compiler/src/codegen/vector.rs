@@ -125,7 +125,7 @@ impl Gen<'_> {
             Op::GridCoord(_) => true,
             Op::Input(k) => buffer_ok(k as usize),
             Op::Table(t) => buffer_ok(self.table_buffer(t)),
-            Op::Dft(..) | Op::Tensor(..) => buffer_ok(self.sched.stored[&i]),
+            Op::Dft(..) | Op::Tensor(..) | Op::Band(..) => buffer_ok(self.sched.stored[&i]),
             _ if self.reloaded(i, epoch) => buffer_ok(self.sched.stored[&i]),
             Op::Unary(u, _) => {
                 let inline = matches!(
@@ -182,7 +182,7 @@ impl Gen<'_> {
             match inst.op {
                 Op::Broadcast(a, _) => self.wide_operand(lc, a)?,
                 Op::GridCoord(g) => [0, 2].map(|first| Cv::real(self.grid_coords(g, lc.index, first))),
-                Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) => {
+                Op::Input(_) | Op::Table(_) | Op::Dft(..) | Op::Tensor(..) | Op::Band(..) => {
                     self.load_halves(self.operand_buffer(v), lc.index, inst.ty.elem == Elem::Complex)
                 }
                 _ if self.reloaded(i, lc.epoch) => self.load_halves(self.sched.stored[&i], lc.index, inst.ty.elem == Elem::Complex),

@@ -61,6 +61,14 @@ impl Builder {
             Op::Reduce(_, a) => Ty { elem: t(a).elem, shape: Shape::Scalar },
             Op::Dft(d, _) => Ty { elem: if d.inverse { Elem::Real } else { Elem::Complex }, shape: Shape::Grid(d.out) },
             Op::Tensor(_, g, ..) => Ty { elem: Elem::Real, shape: Shape::Grid(g) },
+            Op::Band(o, n, _) => {
+                let band = &self.func.bands[n as usize];
+                match o {
+                    BandOp::Cis => Ty { elem: Elem::Complex, shape: Shape::Grid(band.fine) },
+                    BandOp::Interp => Ty { elem: Elem::Real, shape: Shape::Grid(band.fine) },
+                    BandOp::InterpT => Ty { elem: Elem::Real, shape: Shape::Grid(band.coarse) },
+                }
+            }
         }
     }
 
@@ -237,6 +245,7 @@ impl Builder {
             },
             // Transforms are linear: the transform of zero is zero.
             Op::Dft(_, a) if zero(self, a) => Some(self.zero(ty)),
+            Op::Band(BandOp::Interp | BandOp::InterpT, _, a) if zero(self, a) => Some(self.zero(ty)),
             // Tensor ops are linear in each operand, except that pooling's
             // first operand only chooses positions.
             Op::Tensor(t, _, a, b)

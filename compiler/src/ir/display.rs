@@ -31,6 +31,7 @@ impl Function {
                 g(d.out),
                 d.scale()
             ),
+            Op::Band(o, n, a) => format!("{} %{} (bands {n})", o.name(), a.0),
             Op::Tensor(t, _, a, b) => {
                 let sizes = match t {
                     TensorOp::MatVec { m, k } | TensorOp::MatTVec { m, k } | TensorOp::Outer { m, k } => format!("{m}x{k}"),
@@ -100,6 +101,27 @@ impl Function {
         for (k, t) in self.tables.iter().enumerate() {
             let (lo, hi) = t.data.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
             let _ = writeln!(s, "  table {k}: real[{}], {} values in [{lo:e}, {hi:e}]", self.grids[t.grid.0 as usize].name, t.data.len());
+        }
+        for (k, b) in self.bands.iter().enumerate() {
+            let fine = &self.grids[b.fine.0 as usize];
+            let widest = b.nodes.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);
+            let coord = |i: u32| fine.start + i as f64 * fine.step;
+            let nodes: Vec<String> = if b.nodes.len() <= 12 {
+                b.nodes.iter().map(|&i| format!("{:?}", coord(i))).collect()
+            } else {
+                let head = b.nodes[..6].iter().map(|&i| format!("{:?}", coord(i)));
+                head.chain(["…".to_string()]).chain(b.nodes[b.nodes.len() - 3..].iter().map(|&i| format!("{:?}", coord(i)))).collect()
+            };
+            let _ = writeln!(
+                s,
+                "  bands {k}: {} of the {} points of {} (widest band {widest} points, phase error {:.1e} rad at the defaults) [{}]: {}",
+                b.nodes.len(),
+                fine.len,
+                fine.name,
+                b.error,
+                fine.unit,
+                nodes.join(", ")
+            );
         }
         for (i, inst) in self.insts.iter().enumerate() {
             // In mixed precision, the values computed in f64 are marked.

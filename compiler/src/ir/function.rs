@@ -2,7 +2,7 @@
 //! instructions, outputs and requested gradients.
 
 use super::ops::*;
-use super::settings::{MathMode, Precision};
+use super::settings::{MathMode, Multiband, Precision};
 use super::types::*;
 
 /// A uniform grid: `len` points `start + i * step` (base units). Grids of
@@ -93,6 +93,22 @@ pub struct Table {
     pub data: Vec<f64>,
 }
 
+/// A coarse subset of a grid's points for multibanding
+/// (`passes::multiband`): the coarse grid is an index grid of
+/// `nodes.len()` points, point `j` standing for fine point `nodes[j]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Banding {
+    /// The grid the fine values live on.
+    pub fine: GridId,
+    /// The coarse grid.
+    pub coarse: GridId,
+    /// Fine indices of the nodes, increasing, from 0 to the last point.
+    pub nodes: Vec<u32>,
+    /// The largest error of the interpolated phase at the scene's
+    /// defaults, in radians (for `--emit ir`).
+    pub error: f64,
+}
+
 /// A named result of the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Output {
@@ -169,6 +185,10 @@ pub struct Function {
     pub precision: Precision,
     /// Accuracy of transcendental functions.
     pub math: MathMode,
+    /// Multibanding of `cis` on grids (applied by `passes::multiband`).
+    pub multiband: Multiband,
+    /// The coarse grids [`Op::Band`] ops refer to.
+    pub bands: Vec<Banding>,
 }
 
 impl Function {

@@ -299,6 +299,36 @@ impl TensorOp {
     }
 }
 
+/// An operation between a grid and a coarse subset of its points, a
+/// [`Banding`](super::Banding) (multibanding, see `passes::multiband`).
+/// With nodes `i_0 = 0 < i_1 < … < i_m = n − 1` of the fine grid and
+/// `L(x)[k] = (1 − t) x_j + t x_{j+1}`, `t = (k − i_j)/(i_{j+1} − i_j)` for
+/// `i_j ≤ k ≤ i_{j+1}`, the linear interpolation of coarse values `x`.
+/// Like [`Dft`] each runs as a library call between fused loops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BandOp {
+    /// Real `x` on the coarse grid → complex `e^{i L(x)}` on the fine grid,
+    /// computed by rotation: one exact `e^{i x_j}` per node and one complex
+    /// multiply per fine point.
+    Cis,
+    /// Real `x` on the coarse grid → real `L(x)` on the fine grid.
+    Interp,
+    /// Real `y` on the fine grid → real `Lᵀ y` on the coarse grid: the
+    /// transpose of [`BandOp::Interp`] (the adjoint of both others).
+    InterpT,
+}
+
+impl BandOp {
+    /// The name in IR dumps.
+    pub fn name(&self) -> &'static str {
+        match self {
+            BandOp::Cis => "band_cis",
+            BandOp::Interp => "band_interp",
+            BandOp::InterpT => "band_interp_t",
+        }
+    }
+}
+
 /// An instruction's operation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Op {
@@ -332,6 +362,8 @@ pub enum Op {
     /// A tensor operation whose result lives on the grid; unary ops repeat
     /// their operand in the second slot (see [`Op::operands`]).
     Tensor(TensorOp, GridId, Value, Value),
+    /// A [`BandOp`] over banding number n of [`Function::bands`](super::Function::bands).
+    Band(BandOp, u32, Value),
 }
 
 impl Op {
@@ -344,7 +376,7 @@ impl Op {
     pub fn operands(&self) -> Vec<Value> {
         match *self {
             Op::Const(_) | Op::ConstComplex(..) | Op::Param(_) | Op::Input(_) | Op::GridCoord(_) | Op::Table(_) => vec![],
-            Op::Unary(_, a) | Op::PowConst(a, _) | Op::Broadcast(a, _) | Op::Reduce(_, a) | Op::Dft(_, a) => {
+            Op::Unary(_, a) | Op::PowConst(a, _) | Op::Broadcast(a, _) | Op::Reduce(_, a) | Op::Dft(_, a) | Op::Band(_, _, a) => {
                 vec![a]
             }
             Op::Binary(_, a, b) => vec![a, b],
@@ -362,6 +394,7 @@ impl Op {
             Op::Broadcast(a, g) => Op::Broadcast(f(a), g),
             Op::Reduce(r, a) => Op::Reduce(r, f(a)),
             Op::Dft(d, a) => Op::Dft(d, f(a)),
+            Op::Band(o, n, a) => Op::Band(o, n, f(a)),
             Op::Binary(b, x, y) => Op::Binary(b, f(x), f(y)),
             Op::Select(c, x, y) => Op::Select(f(c), f(x), f(y)),
             Op::Tensor(t, g, x, _) if t.arity() == 1 => {

@@ -1,4 +1,5 @@
-//! The scene's speed/accuracy settings: working precision and math mode.
+//! The scene's speed/accuracy settings: working precision, math mode and
+//! multibanding.
 
 use std::fmt;
 use std::str::FromStr;
@@ -121,9 +122,60 @@ impl FromStr for MathMode {
     }
 }
 
+/// Multibanding of complex exponentials `cis(phase)` on a grid (the
+/// scene's `multiband` setting; `passes::multiband`): the phase is
+/// computed on a coarse subset of the grid's points, chosen at compile
+/// time so that linear interpolation between them is within `tolerance`
+/// radians of the exact phase at the scene's defaults, and `e^{i phase}`
+/// on the fine points between two nodes is advanced by one complex
+/// multiply per point (Vinciguerra, Veitch & Mandel 2017,
+/// arXiv:1703.02062; García-Quirós et al. 2020, arXiv:2001.10897).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Multiband {
+    /// Every point computed exactly.
+    #[default]
+    Off,
+    /// Largest phase error of the interpolation, in radians, at the defaults.
+    Tolerance(f64),
+}
+
+impl fmt::Display for Multiband {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Multiband::Off => f.write_str("off"),
+            Multiband::Tolerance(t) => write!(f, "{t:e}"),
+        }
+    }
+}
+
+impl FromStr for Multiband {
+    type Err = UnknownSetting;
+    fn from_str(s: &str) -> Result<Multiband, UnknownSetting> {
+        let help = "off, or the largest phase error in radians of the interpolated phase, a number in (0, 1] such as 1e-4";
+        match s {
+            "off" => Ok(Multiband::Off),
+            _ => match s.parse::<f64>() {
+                Ok(t) if t > 0.0 && t <= 1.0 => Ok(Multiband::Tolerance(t)),
+                _ => Err(UnknownSetting { setting: "multiband tolerance", found: s.to_string(), help }),
+            },
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn multiband_parses_off_and_tolerances() {
+        assert_eq!("off".parse::<Multiband>(), Ok(Multiband::Off));
+        assert_eq!("1e-4".parse::<Multiband>(), Ok(Multiband::Tolerance(1e-4)));
+        assert_eq!(Multiband::Tolerance(1e-4).to_string().parse::<Multiband>(), Ok(Multiband::Tolerance(1e-4)));
+        for bad in ["0", "-1e-3", "2", "fine", "nan"] {
+            let e = bad.parse::<Multiband>().unwrap_err();
+            assert!(e.help.contains("radians"), "{bad}: {}", e.help);
+        }
+    }
 
     #[test]
     fn every_setting_parses_from_the_name_it_prints() {

@@ -40,6 +40,20 @@ impl Function {
                         && real_array(a, lens[0])
                         && (op.arity() == 1 || real_array(b, lens[1]))
                 }
+                Op::Band(o, n, a) => match self.bands.get(n as usize) {
+                    Some(band) => {
+                        let (from, to) = match o {
+                            BandOp::Cis | BandOp::Interp => (band.coarse, band.fine),
+                            BandOp::InterpT => (band.fine, band.coarse),
+                        };
+                        let nodes_ok = band.nodes.len() == self.grid(band.coarse).len
+                            && band.nodes.first() == Some(&0)
+                            && band.nodes.last().map(|&l| l as usize + 1) == Some(self.grid(band.fine).len)
+                            && band.nodes.windows(2).all(|w| w[0] < w[1]);
+                        nodes_ok && t(a) == Ty { elem: Elem::Real, shape: Shape::Grid(from) } && inst.ty.shape == Shape::Grid(to)
+                    }
+                    None => false,
+                },
                 _ => true,
             };
             if !ok {

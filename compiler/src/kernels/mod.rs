@@ -7,6 +7,7 @@
 //! analysis evaluate with. Besides codegen's ABI, the only `unsafe` in the
 //! compiler lives here.
 
+pub mod band;
 pub mod dft;
 pub mod interp;
 pub mod tensor;

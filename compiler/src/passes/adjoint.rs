@@ -313,6 +313,23 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value, active: &[bool]) -> Vec
             vec![(a, b.emit(Op::Dft(Dft { inverse: !d.inverse, out: grid, ..d }, g)))]
         }
         Op::Tensor(t, _, x, y) => tensor_rule(b, t, x, y, g).into_iter().filter(|(v, _)| want(*v)).collect(),
+        // z = e^{i L(x)}: as for `cis`, the adjoint of the interpolated
+        // phase is Im(z̄ · conj(z)) per fine point; L's transpose takes it
+        // to the nodes. Interpolation and its transpose are each other's
+        // adjoints.
+        Op::Band(o, n, a) => {
+            let back = |b: &mut Builder, o: BandOp, v: Value| b.emit(Op::Band(o, n, v));
+            match o {
+                BandOp::Cis => {
+                    let cz = b.unary(UnOp::Conj, z);
+                    let w = b.mul(g, cz);
+                    let per_point = b.unary(UnOp::Im, w);
+                    vec![(a, back(b, BandOp::InterpT, per_point))]
+                }
+                BandOp::Interp => vec![(a, back(b, BandOp::InterpT, g))],
+                BandOp::InterpT => vec![(a, back(b, BandOp::Interp, g))],
+            }
+        }
         Op::Reduce(Reduce::Max, a) => {
             // The maximum's adjoint is shared equally among tied elements
             // (a subgradient; JAX's convention).

@@ -2,6 +2,8 @@
 //! driver verifies the IR after each pass and can dump it.
 //!
 //! - [`prune`]: keep only what the requested outputs and gradients need (DCE).
+//! - [`multiband`]: with the scene's `multiband` setting, `cis` of a phase
+//!   over a grid computed on a coarse subset of the grid's points.
 //! - [`adjoint`]: symbolic reverse-mode differentiation with activity analysis.
 //! - [`simplify`]: rebuild through the folding builder (CSE, constant
 //!   folding, algebraic identities), then prune.
@@ -12,12 +14,14 @@
 //!   of 1e-23 and their squares stay inside f32's range.
 
 mod adjoint;
+pub mod multiband;
 pub mod precision;
 mod prune;
 mod rescale;
 mod specialise;
 
 pub use adjoint::adjoint;
+pub use multiband::multiband;
 pub use prune::prune;
 pub use rescale::rescale;
 pub use specialise::specialise;

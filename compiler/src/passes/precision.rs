@@ -4,7 +4,7 @@
 //! instruction. It runs the reference interpreter, so it is a pass the
 //! driver and codegen call, never something printing does.
 
-use crate::ir::{Elem, Function, Op, Precision, UnOp};
+use crate::ir::{BandOp, Elem, Function, Op, Precision, UnOp};
 use crate::kernels::interp;
 
 /// Per instruction, whether [`Precision::Mixed`] computes it in f64 (a
@@ -30,7 +30,7 @@ pub fn wide_values(func: &Function) -> Vec<bool> {
     for i in (0..func.insts.len()).rev() {
         let op = func.insts[i].op;
         let phase = match op {
-            Op::Unary(UnOp::Sin | UnOp::Cos | UnOp::Tan | UnOp::Cis, a) => Some(a),
+            Op::Unary(UnOp::Sin | UnOp::Cos | UnOp::Tan | UnOp::Cis, a) | Op::Band(BandOp::Cis, _, a) => Some(a),
             Op::Unary(UnOp::Exp, a) if func.ty(a).elem == Elem::Complex => Some(a),
             _ => None,
         };
@@ -38,7 +38,7 @@ pub fn wide_values(func: &Function) -> Vec<bool> {
             wide[i] = true;
             wide[a.index()] = true;
         }
-        let elementwise = !matches!(op, Op::Reduce(..) | Op::Dft(..) | Op::Tensor(..));
+        let elementwise = !matches!(op, Op::Reduce(..) | Op::Dft(..) | Op::Tensor(..) | Op::Band(..));
         if wide[i] && elementwise {
             for a in op.operands() {
                 wide[a.index()] = true;
@@ -46,6 +46,18 @@ pub fn wide_values(func: &Function) -> Vec<bool> {
         }
     }
     wide
+}
+
+/// The scene's params (base units) and inputs at their defaults: a param
+/// without one at 1, an input without one at zero.
+pub fn defaults(func: &Function) -> (Vec<f64>, Vec<interp::Tensor>) {
+    let params: Vec<f64> = func.params.iter().map(|p| p.default.map_or(1.0, |d| d * p.scale)).collect();
+    let inputs: Vec<interp::Tensor> = func
+        .inputs
+        .iter()
+        .map(|i| i.default.clone().unwrap_or_else(|| vec![num_complex::Complex64::new(0.0, 0.0); func.len_of(i.ty.shape)]))
+        .collect();
+    (params, inputs)
 }
 
 /// The largest finite magnitude of each instruction's value (0 when all
@@ -58,12 +70,7 @@ pub fn default_magnitudes(func: &Function) -> Option<Vec<f64>> {
     if func.insts.len().saturating_mul(longest) > interp::EVAL_BUDGET {
         return None;
     }
-    let params: Vec<f64> = func.params.iter().map(|p| p.default.map_or(1.0, |d| d * p.scale)).collect();
-    let inputs: Vec<interp::Tensor> = func
-        .inputs
-        .iter()
-        .map(|i| i.default.clone().unwrap_or_else(|| vec![num_complex::Complex64::new(0.0, 0.0); func.len_of(i.ty.shape)]))
-        .collect();
+    let (params, inputs) = defaults(func);
     let values = interp::interpret(func, &params, &inputs).values;
     Some(values.iter().map(|t| t.iter().flat_map(|z| [z.re.abs(), z.im.abs()]).filter(|x| x.is_finite()).fold(0.0, f64::max)).collect())
 }

@@ -158,7 +158,9 @@ fn scene_stmt<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parse
         wrt,
         span: e.span(),
     });
-    let setting = ident().then_ignore(op(":")).then(ident()).map(|(name, value)| SceneStmt::Setting { name, value });
+    // A setting's value is a word (`f64`) or a number (`1e-4`), kept as text.
+    let number = select! { Token::Num(n) => n.to_string() }.map_with(|s, e| Spanned::new(s, e.span()));
+    let setting = ident().then_ignore(op(":")).then(ident().or(number)).map(|(name, value)| SceneStmt::Setting { name, value });
     choice((
         grid,
         input,
