@@ -23,7 +23,7 @@ pub(crate) fn knob_assignment(s: &str, flag: &str) -> Result<(String, String), S
 
 pub(crate) fn options(k: KnobArgs) -> Result<Options, String> {
     let knobs = k.knobs.iter().map(|s| knob_assignment(s, "--knob")).collect::<Result<Vec<_>, _>>()?;
-    Ok(Options { knobs, precision: k.precision, math: k.math, ..Options::default() })
+    Ok(Options { knobs, precision: k.precision, math: k.math, multiband: k.multiband, ..Options::default() })
 }
 
 /// `gwml compile`.

@@ -111,6 +111,12 @@ pub struct KnobArgs {
     /// polynomials, ~1e-12 relative error) or fastest (~1e-7).
     #[arg(long, value_name = "exact|fast|fastest", value_parser = setting::<MathMode>)]
     pub math: Option<MathMode>,
+    /// Override the scene's multiband setting: off, or the largest phase
+    /// error in radians (e.g. 1e-3) of waveform phases computed on a coarse
+    /// subset of their grid and interpolated, `e^{iφ}` advanced by rotation
+    /// between the nodes (`--emit ir` lists the nodes chosen).
+    #[arg(long, value_name = "off|TOLERANCE", value_parser = setting::<Multiband>)]
+    pub multiband: Option<Multiband>,
     /// Set one of the scene's `knob` declarations: NAME=VALUE, the value
     /// written as in the scene, with its unit (`--knob df="0.25 Hz"`,
     /// `--knob pn_order=5`). Repeatable.
