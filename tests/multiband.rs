@@ -1,6 +1,7 @@
 //! Multibanding (`multiband: TOLERANCE`, issue #26): the banded TaylorF2
 //! strain against the exact one (mismatch, phase error) at W1 and at the
-//! extremes of `tests/extremes.rs`, in every precision; its gradient
+//! extremes of `tests/extremes.rs`, in every precision (f64, mixed and f32
+//! bounds); its gradient
 //! against finite differences of the banded likelihood itself; the JIT's
 //! rotation against the interpreter's exact `e^{i L(φ)}`.
 
@@ -87,11 +88,14 @@ fn banded_strain_stays_within_the_tolerance_at_w1_and_the_extremes() {
             assert!(worst <= 1.05 * tol + 1e-9, "{name} at {tol:e}: phase off by {worst:e} rad");
             assert!(nodes < 8033, "{name}: {nodes} nodes");
         }
-        // f32 and mixed: the banded phase is as good as f32 storage allows.
+        // Mixed precision keeps the phase in f64: the tolerance's bound
+        // holds (measured ≤ 1.6e-9 against 5e-9). In f32 the coarse phase
+        // itself is f32 (1e4 rad to ~1e-3 rad): measured ≤ 2.3e-7 (BNS),
+        // within the issue's 1e-6.
         let (mm_mixed, _, _) = banded_vs_exact(src, Precision::Mixed, 1e-4);
-        assert!(mm_mixed <= 1e-6, "{name}: mixed precision mismatch {mm_mixed:e}");
+        assert!(mm_mixed <= 1e-4 * 1e-4 / 2.0 + 1e-9, "{name}: mixed precision mismatch {mm_mixed:e}");
         let (mm_f32, _, _) = banded_vs_exact(src, Precision::F32, 1e-4);
-        assert!(mm_f32.is_finite(), "{name}: f32 mismatch {mm_f32:e}");
+        assert!(mm_f32 <= 1e-6, "{name}: f32 mismatch {mm_f32:e}");
     }
 }
 
