@@ -89,10 +89,7 @@ pub fn interpret_only(func: &Function, params: &[f64], inputs: &[Tensor], wanted
                 let n = if d.inverse { len } else { values[a.index()].len() };
                 crate::kernels::dft::apply(d, n, &values[a.index()])
             }
-            Op::Band(op, n, a) => {
-                let plan = crate::kernels::band::BandPlan { op, nodes: func.bands[n as usize].nodes.clone() };
-                crate::kernels::band::apply(&plan, &values[a.index()])
-            }
+            Op::Band(op, n, a) => crate::kernels::band::apply(op, &func.bands[n as usize].nodes, &values[a.index()]),
             Op::Tensor(t, _, a, b) => {
                 let re = |v: Value| values[v.index()].iter().map(|z| z.re).collect::<Vec<f64>>();
                 let mut out = vec![0.0; t.out_len()];

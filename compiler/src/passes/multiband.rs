@@ -106,7 +106,8 @@ pub fn multiband(func: &Function) -> Function {
     for (i, inst) in func.insts.iter().enumerate() {
         let v = match (inst.op, banding_of.get(&i)) {
             (Op::Unary(UnOp::Cis, x), Some(&n)) => {
-                let xc = clone_onto(func, &mut b, &map, &mut coarse, x, n);
+                let band = b.func.bands[n as usize].clone();
+                let xc = clone_onto(func, &mut b, &map, &mut coarse, x, (n, &band));
                 b.emit(Op::Band(BandOp::Cis, n, xc))
             }
             (op, _) => b.emit(op.map_operands(|v| map[v.index()])),
@@ -150,14 +151,20 @@ impl Cone<'_> {
 
 /// The value of fine array `x` recomputed on the coarse grid of banding
 /// `n` (scalars are shared with the fine computation).
-fn clone_onto(func: &Function, b: &mut Builder, map: &[Value], coarse: &mut HashMap<(usize, u32), Value>, x: Value, n: u32) -> Value {
+fn clone_onto(
+    func: &Function,
+    b: &mut Builder,
+    map: &[Value],
+    coarse: &mut HashMap<(usize, u32), Value>,
+    x: Value,
+    (n, band): (u32, &Banding),
+) -> Value {
     if func.ty(x).shape == Shape::Scalar {
         return map[x.index()];
     }
     if let Some(&v) = coarse.get(&(x.index(), n)) {
         return v;
     }
-    let band = b.func.bands[n as usize].clone();
     let at_nodes = |data: &dyn Fn(usize) -> f64| band.nodes.iter().map(|&k| data(k as usize)).collect::<Vec<f64>>();
     let v = match func.insts[x.index()].op {
         Op::GridCoord(g) => {
@@ -174,7 +181,8 @@ fn clone_onto(func: &Function, b: &mut Builder, map: &[Value], coarse: &mut Hash
         }
         Op::Broadcast(s, _) => b.emit(Op::Broadcast(map[s.index()], band.coarse)),
         op => {
-            let operands: Vec<(Value, Value)> = op.operands().into_iter().map(|a| (a, clone_onto(func, b, map, coarse, a, n))).collect();
+            let operands: Vec<(Value, Value)> =
+                op.operands().into_iter().map(|a| (a, clone_onto(func, b, map, coarse, a, (n, band)))).collect();
             let mapped = op.map_operands(|a| operands.iter().find(|(o, _)| *o == a).expect("an operand").1);
             b.emit(mapped)
         }
