@@ -23,7 +23,14 @@ pub(crate) fn knob_assignment(s: &str, flag: &str) -> Result<(String, String), S
 
 pub(crate) fn options(k: KnobArgs) -> Result<Options, String> {
     let knobs = k.knobs.iter().map(|s| knob_assignment(s, "--knob")).collect::<Result<Vec<_>, _>>()?;
-    Ok(Options { knobs, precision: k.precision, math: k.math, multiband: k.multiband, ..Options::default() })
+    Ok(Options {
+        knobs,
+        precision: k.precision,
+        math: k.math,
+        multiband: k.multiband,
+        relative_binning: k.relative_binning,
+        ..Options::default()
+    })
 }
 
 /// `gwml compile`.
@@ -458,27 +465,41 @@ fn num(x: f64) -> String {
 
 /// `gwml tradeoff`.
 pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
-    use gwml_lab::tradeoff::{all_configs, csv, sweep, table, with_knob_sweeps, with_multiband, Config, Settings, DEFAULT_MULTIBAND};
-    let model = Model::from_file(&a.file).map_err(render)?;
-    // Multibanding is swept by default only where it applies: a scene
-    // with a waveform phase over a grid (it is a no-op elsewhere).
-    let multiband = if a.multiband.is_empty() {
-        let probe = Options { multiband: Some(DEFAULT_MULTIBAND[2]), ..Default::default() };
-        let bands = model.scene_with(a.scene.as_deref(), probe).map_err(render)?.forward_ir().bands.len();
-        if bands > 0 {
-            DEFAULT_MULTIBAND.to_vec()
-        } else {
-            vec![gwml::compiler::ir::Multiband::Off]
-        }
-    } else {
-        a.multiband.clone()
+    use gwml::compiler::ir::{Multiband, RelativeBinning};
+    use gwml_lab::tradeoff::{
+        all_configs, csv, sweep, table, with_algorithms, with_knob_sweeps, Config, Settings, DEFAULT_MULTIBAND, DEFAULT_RELATIVE_BINNING,
     };
+    let model = Model::from_file(&a.file).map_err(render)?;
+    // The algorithmic settings are swept by default only where they
+    // apply: multibanding for a scene with a waveform phase over a grid,
+    // relative binning for one with a likelihood sum over a waveform.
+    let probe = |options: Options| model.scene_with(a.scene.as_deref(), options).map_err(render);
+    let multiband = if !a.multiband.is_empty() {
+        a.multiband.clone()
+    } else if probe(Options { multiband: Some(DEFAULT_MULTIBAND[2]), ..Default::default() })?.forward_ir().bands.is_empty() {
+        vec![Multiband::Off]
+    } else {
+        DEFAULT_MULTIBAND.to_vec()
+    };
+    let relative_binning = if !a.relative_binning.is_empty() {
+        a.relative_binning.clone()
+    } else if a.multiband.is_empty()
+        && !probe(Options { relative_binning: Some(DEFAULT_RELATIVE_BINNING[1]), ..Default::default() })?.ir().bands.is_empty()
+    {
+        std::iter::once(RelativeBinning::Off).chain(DEFAULT_RELATIVE_BINNING).collect()
+    } else {
+        vec![RelativeBinning::Off]
+    };
+    // Each algorithm on its own: multibanding with relative binning off,
+    // and relative binning with multibanding off.
+    let mut algorithms: Vec<(Multiband, RelativeBinning)> = multiband.iter().map(|&m| (m, RelativeBinning::Off)).collect();
+    algorithms.extend(relative_binning.iter().filter(|&&r| r != RelativeBinning::Off).map(|&r| (Multiband::Off, r)));
     let configs: Vec<Config> = all_configs()
         .into_iter()
         .filter(|c| a.precision.is_empty() || a.precision.contains(&c.precision))
         .filter(|c| a.math.is_empty() || a.math.contains(&c.math))
         .collect();
-    let configs = with_multiband(configs, &multiband);
+    let configs = with_algorithms(configs, &algorithms);
     let mut sweeps = Vec::new();
     for s in &a.sweep {
         let (name, values) = knob_assignment(s, "--sweep")?;
@@ -533,8 +554,9 @@ pub fn tradeoff(a: crate::TradeoffArgs) -> Result<(), String> {
             .map(|r| {
                 let knobs: serde_json::Map<String, serde_json::Value> = r.config.knobs.iter().map(|(n, v)| (n.clone(), json!(v))).collect();
                 json!({"precision": r.config.precision.to_string(), "math": r.config.math.to_string(),
-                       "multiband": r.config.multiband.to_string(), "knobs": knobs, "forward_us": r.forward_us,
-                       "grad_us": r.grad_us, "output_error": r.output_error, "grad_error": r.grad_error, "mismatch": r.mismatch, "pareto": r.pareto,
+                       "multiband": r.config.multiband.to_string(),
+                       "relative_binning": r.config.relative_binning.to_string(), "knobs": knobs, "forward_us": r.forward_us,
+                       "grad_us": r.grad_us, "output_error": r.output_error, "grad_error": r.grad_error, "mismatch": r.mismatch, "delta_loss": r.delta_loss, "pareto": r.pareto,
                        "failure": r.failure})
             })
             .collect();

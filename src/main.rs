@@ -10,7 +10,7 @@ mod scan;
 mod strain_input;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use gwml::compiler::ir::{MathMode, Multiband, Precision, UnknownSetting};
+use gwml::compiler::ir::{MathMode, Multiband, Precision, RelativeBinning, UnknownSetting};
 use gwml_lab::experiment;
 use gwml_lab::generator::{self, GeneratorCommand};
 use gwml_lab::synth::GlitchClass;
@@ -117,6 +117,13 @@ pub struct KnobArgs {
     /// between the nodes (`--emit ir` lists the nodes chosen).
     #[arg(long, value_name = "off|TOLERANCE", value_parser = setting::<Multiband>)]
     pub multiband: Option<Multiband>,
+    /// Override the scene's relative_binning setting: off, or a number of
+    /// frequency bins (e.g. 100). Likelihood sums quadratic in a waveform
+    /// are computed from summary data of the waveform at the params'
+    /// defaults (the fiducial), the waveform evaluated at the bins' edges
+    /// only (`--emit ir` lists them).
+    #[arg(long, value_name = "off|BINS", value_parser = setting::<RelativeBinning>)]
+    pub relative_binning: Option<RelativeBinning>,
     /// Set one of the scene's `knob` declarations: NAME=VALUE, the value
     /// written as in the scene, with its unit (`--knob df="0.25 Hz"`,
     /// `--knob pn_order=5`). Repeatable.
@@ -465,6 +472,12 @@ pub struct TradeoffArgs {
     /// 1e-3 and 1e-4 for scenes with a waveform phase over a grid, else off].
     #[arg(long, value_name = "TOL,...", value_delimiter = ',', value_parser = setting::<Multiband>)]
     pub multiband: Vec<Multiband>,
+    /// Relative-binning bin counts to sweep, comma-separated: `off` or a
+    /// number of bins (`off,100`) [default: off, 50, 100 and 200 for scenes
+    /// with a likelihood sum over a waveform, unless --multiband is given].
+    /// Each is measured with multibanding off.
+    #[arg(long, value_name = "BINS,...", value_delimiter = ',', value_parser = setting::<RelativeBinning>)]
+    pub relative_binning: Vec<RelativeBinning>,
     /// Also sweep one of the scene's `knob` declarations over comma-separated
     /// values, NAME=V1,V2,... (`--sweep df="0.25 Hz,0.5 Hz"`,
     /// `--sweep pn_order=4,6`); repeatable (every combination is measured).

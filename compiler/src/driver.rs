@@ -1,7 +1,7 @@
 //! The driver: the stage order, and nothing else.
 //!
 //! parse (+ imports) → resolve modules → check + lower each scene →
-//! prune → multiband → adjoint → simplify → specialise → rescale → (codegen, in
+//! prune → relbin → multiband → adjoint → simplify → stage → specialise → rescale → (codegen, in
 //! [`crate::codegen`]). Every composition of passes is here
 //! ([`GRADIENT_PASSES`], [`FORWARD_PASSES`]); after each pass the IR is
 //! verified in debug builds, or when asked ([`Options::verify`],
@@ -98,6 +98,8 @@ pub struct Options {
     pub math: Option<crate::ir::MathMode>,
     /// Overrides the scene's `multiband` setting.
     pub multiband: Option<crate::ir::Multiband>,
+    /// Overrides the scene's `relative_binning` setting.
+    pub relative_binning: Option<crate::ir::RelativeBinning>,
     /// Overrides of the scene's `knob` values: name and value as source text
     /// (`("df", "0.25 Hz")`); the scene is checked and lowered again with them.
     pub knobs: Vec<(String, String)>,
@@ -136,8 +138,11 @@ pub struct ScenePipeline {
     pub pruned: Function,
     /// With adjoints appended.
     pub adjoint: Function,
-    /// Simplified: what the code generator compiles.
+    /// Simplified, specialised and rescaled: the whole computation.
     pub optimized: Function,
+    /// What the gradient kernel runs: `optimized`, or its prelude and
+    /// per-call parts when values computed from the data alone were split off.
+    pub kernel: KernelIr,
     /// Counts and times.
     pub stats: Stats,
     /// Whether the IR is verified after every pass (also by [`ScenePipeline::forward`]).
@@ -271,6 +276,9 @@ impl Program {
         if let Some(m) = opts.multiband {
             checked.multiband = m;
         }
+        if let Some(r) = opts.relative_binning {
+            checked.relative_binning = r;
+        }
         if let Some(keep) = &opts.outputs {
             if let Some(unknown) = keep.iter().find(|k| !checked.outputs.iter().any(|o| &o.name == *k)) {
                 return Err(PipelineError::Scene(format!("scene `{}` has no output `{unknown}`", checked.name)));
@@ -300,19 +308,56 @@ fn verify_after_passes(opts: &Options) -> bool {
 type Pass = (&'static str, fn(&Function) -> Function);
 
 /// The passes from the checked IR to what codegen compiles, in order.
-const GRADIENT_PASSES: [Pass; 6] = [
+/// Then [`finish`] stages the result and runs [`LATE_PASSES`] on each part.
+const GRADIENT_PASSES: [Pass; 5] = [
     ("prune", passes::prune),
+    ("relbin", passes::relbin),
     ("multiband", passes::multiband),
     ("adjoint", passes::adjoint),
     ("simplify", passes::simplify),
-    ("specialise", passes::specialise),
-    ("rescale", passes::rescale),
 ];
 
 /// The passes of a forward-only kernel: as [`GRADIENT_PASSES`] without the adjoint.
-/// It starts from [`ScenePipeline::pruned`], which is already multibanded.
-const FORWARD_PASSES: [Pass; 4] =
-    [("prune", passes::prune), ("simplify", passes::simplify), ("specialise", passes::specialise), ("rescale", passes::rescale)];
+/// It starts from [`ScenePipeline::pruned`], which is already multibanded;
+/// then [`finish`].
+const FORWARD_PASSES: [Pass; 2] = [("prune", passes::prune), ("simplify", passes::simplify)];
+
+/// The passes after staging, on the main function and on the prelude.
+const LATE_PASSES: [Pass; 2] = [("specialise", passes::specialise), ("rescale", passes::rescale)];
+
+/// What one kernel runs: the per-call function and, when values computed
+/// from the data alone were split off, the prelude that computes them.
+#[derive(Clone, Debug)]
+pub struct KernelIr {
+    /// The whole computation in one function (what the interpreter runs
+    /// and callers bind by name).
+    pub whole: Function,
+    /// Computes `main`'s cached inputs (`passes::stage`).
+    pub prelude: Option<Function>,
+    /// The per-call function: `whole` itself when nothing was split off.
+    pub main: Function,
+}
+
+/// Runs [`LATE_PASSES`] on one function.
+fn late(mut func: Function, verify: bool, times: &mut PassTimes) -> Result<Function, PipelineError> {
+    for pass in LATE_PASSES {
+        func = run_pass(pass, &func, verify, times)?;
+    }
+    Ok(func)
+}
+
+/// Stages a simplified function and runs [`LATE_PASSES`] on the whole
+/// function and on each part.
+fn finish(simplified: Function, verify: bool, times: &mut PassTimes) -> Result<KernelIr, PipelineError> {
+    let t = Instant::now();
+    let staged = passes::stage::split(&simplified);
+    times.passes.push(("stage", t.elapsed()));
+    let whole = late(simplified, verify, times)?;
+    Ok(match staged {
+        Some(s) => KernelIr { prelude: Some(late(s.prelude, verify, times)?), main: late(s.main, verify, times)?, whole },
+        None => KernelIr { prelude: None, main: whole.clone(), whole },
+    })
+}
 
 /// Times of the passes, and of the verifier after them.
 #[derive(Default)]
@@ -339,13 +384,14 @@ fn run_pass((name, pass): Pass, input: &Function, verify: bool, times: &mut Pass
 /// keeping the IR after pruning, after the adjoint and at the end.
 pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, PipelineError> {
     let mut times = PassTimes::default();
-    let [prune, multiband, adjoint, simplify, specialise, rescale] = GRADIENT_PASSES;
+    let [prune, relbin, multiband, adjoint, simplify] = GRADIENT_PASSES;
     let pruned = run_pass(prune, &checked, verify, &mut times)?;
+    let pruned = run_pass(relbin, &pruned, verify, &mut times)?;
     let pruned = run_pass(multiband, &pruned, verify, &mut times)?;
     let adjoint = run_pass(adjoint, &pruned, verify, &mut times)?;
     let simplified = run_pass(simplify, &adjoint, verify, &mut times)?;
-    let specialised = run_pass(specialise, &simplified, verify, &mut times)?;
-    let optimized = run_pass(rescale, &specialised, verify, &mut times)?;
+    let kernel = finish(simplified, verify, &mut times)?;
+    let optimized = kernel.whole.clone();
     let stats = Stats {
         checked_ops: checked.insts.len(),
         pruned_ops: pruned.insts.len(),
@@ -353,20 +399,21 @@ pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, Pipe
         optimized_ops: optimized.insts.len(),
         times: times.passes.into_iter().chain(times.verify.map(|t| ("verify", t))).collect(),
     };
-    Ok(ScenePipeline { checked, pruned, adjoint, optimized, stats, verify })
+    Ok(ScenePipeline { checked, pruned, adjoint, optimized, kernel, stats, verify })
 }
 
 impl ScenePipeline {
     /// The IR of the forward-only kernel: the pruned IR without its
     /// gradients, through [`FORWARD_PASSES`].
-    pub fn forward(&self) -> Result<Function, PipelineError> {
+    pub fn forward(&self) -> Result<KernelIr, PipelineError> {
         let mut func = self.pruned.clone();
         func.grads.clear();
         func.input_grads.clear();
+        let mut times = PassTimes::default();
         for pass in FORWARD_PASSES {
-            func = run_pass(pass, &func, self.verify, &mut PassTimes::default())?;
+            func = run_pass(pass, &func, self.verify, &mut times)?;
         }
-        Ok(func)
+        finish(func, self.verify, &mut times)
     }
 }
 

@@ -15,4 +15,4 @@ pub mod ir;
 pub mod kernels;
 pub mod passes;
 
-pub use driver::{CompileError, Options, PipelineError, Program, ScenePipeline, Stats};
+pub use driver::{CompileError, KernelIr, Options, PipelineError, Program, ScenePipeline, Stats};

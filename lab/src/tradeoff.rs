@@ -13,11 +13,15 @@
 //!   `S` is the real array output named by `--psd` (unweighted without it).
 //!   No maximisation over time or phase: a pure precision loss, not a search.
 //!
+//! - |Δ loss|: over every differentiated real scalar output (a likelihood
+//!   or a loss, which relative binning approximates), the largest absolute
+//!   difference `|a − r|`, the `|Δ ln L|` of the relative-binning literature.
+//!
 //! An array output whose length differs from the reference's (a knob changed
 //! its grid) is not compared; scalars (a likelihood) and gradients still are.
 
 use crate::timing::median_us;
-use gwml_compiler::ir::{MathMode, Multiband, Precision};
+use gwml_compiler::ir::{MathMode, Multiband, Precision, RelativeBinning};
 use gwml_compiler::Options;
 use gwml_runtime::{Error, Model, Outputs, Run, Value};
 use num_complex::Complex64 as C64;
@@ -32,6 +36,8 @@ pub struct Config {
     pub math: MathMode,
     /// Multibanding of the scene's waveform phases.
     pub multiband: Multiband,
+    /// Relative binning of the scene's likelihood sums.
+    pub relative_binning: RelativeBinning,
     /// Values of the scene's own `knob`s, as source text (`("df", "0.25 Hz")`);
     /// the knobs not named keep the scene's values.
     pub knobs: Vec<(String, String)>,
@@ -40,7 +46,13 @@ pub struct Config {
 impl Config {
     /// f64, exact math, the scene's own knob values: what every row is measured against.
     pub fn reference() -> Config {
-        Config { precision: Precision::F64, math: MathMode::Exact, multiband: Multiband::Off, knobs: Vec::new() }
+        Config {
+            precision: Precision::F64,
+            math: MathMode::Exact,
+            multiband: Multiband::Off,
+            relative_binning: RelativeBinning::Off,
+            knobs: Vec::new(),
+        }
     }
 
     /// The scene knobs as `df=0.25 Hz pn_order=5` (empty for the scene's own).
@@ -48,11 +60,28 @@ impl Config {
         self.knobs.iter().map(|(n, v)| format!("{n}={v}")).collect::<Vec<_>>().join(" ")
     }
 
+    /// The algorithmic setting: `multiband=1e-3`, `relative_binning=100`,
+    /// or `exact`.
+    pub fn algorithm(&self) -> String {
+        let mut parts = Vec::new();
+        if self.multiband != Multiband::Off {
+            parts.push(format!("multiband={}", self.multiband));
+        }
+        if self.relative_binning != RelativeBinning::Off {
+            parts.push(format!("relative_binning={}", self.relative_binning));
+        }
+        if parts.is_empty() {
+            "exact".into()
+        } else {
+            parts.join(" ")
+        }
+    }
+
     /// `f64 exact multiband=1e-3 df=0.25 Hz`: the knobs in one phrase.
     pub fn label(&self) -> String {
         let k = self.knob_text();
-        let mb = if self.multiband == Multiband::Off { String::new() } else { format!(" multiband={}", self.multiband) };
-        format!("{} {}{mb}{}{k}", self.precision, self.math, if k.is_empty() { "" } else { " " })
+        let alg = if self.algorithm() == "exact" { String::new() } else { format!(" {}", self.algorithm()) };
+        format!("{} {}{alg}{}{k}", self.precision, self.math, if k.is_empty() { "" } else { " " })
     }
 }
 
@@ -85,6 +114,8 @@ pub struct Row {
     pub grad_error: Option<f64>,
     /// Largest mismatch of any complex array output.
     pub mismatch: Option<f64>,
+    /// Largest absolute error of a differentiated real scalar output.
+    pub delta_loss: Option<f64>,
     /// No other row is at least as fast and at least as accurate (and better in one).
     pub pareto: bool,
     /// Why this configuration could not run (e.g. a non-finite output in
@@ -103,6 +134,7 @@ impl Row {
             output_error: nan,
             grad_error: None,
             mismatch: None,
+            delta_loss: None,
             pareto: false,
             failure: Some(e.to_string()),
         }
@@ -128,7 +160,7 @@ pub fn all_configs() -> Vec<Config> {
     let mut v = Vec::new();
     for precision in [Precision::F64, Precision::Mixed, Precision::F32] {
         for math in [MathMode::Exact, MathMode::Fast, MathMode::Fastest] {
-            v.push(Config { precision, math, multiband: Multiband::Off, knobs: Vec::new() });
+            v.push(Config { precision, math, ..Config::reference() });
         }
     }
     v
@@ -139,9 +171,18 @@ pub fn all_configs() -> Vec<Config> {
 pub const DEFAULT_MULTIBAND: [Multiband; 4] =
     [Multiband::Off, Multiband::Tolerance(1e-2), Multiband::Tolerance(1e-3), Multiband::Tolerance(1e-4)];
 
-/// Every configuration of `configs` with every multibanding setting of `settings`.
-pub fn with_multiband(configs: Vec<Config>, settings: &[Multiband]) -> Vec<Config> {
-    configs.into_iter().flat_map(|c| settings.iter().map(move |&multiband| Config { multiband, ..c.clone() })).collect()
+/// The bin counts `gwml tradeoff` sweeps by default for relative binning
+/// (jimgw's default is 100).
+pub const DEFAULT_RELATIVE_BINNING: [RelativeBinning; 3] =
+    [RelativeBinning::Bins(50), RelativeBinning::Bins(100), RelativeBinning::Bins(200)];
+
+/// Every configuration of `configs` with every algorithmic setting of
+/// `settings` (multibanding and relative binning, each pair as given).
+pub fn with_algorithms(configs: Vec<Config>, settings: &[(Multiband, RelativeBinning)]) -> Vec<Config> {
+    configs
+        .into_iter()
+        .flat_map(|c| settings.iter().map(move |&(multiband, relative_binning)| Config { multiband, relative_binning, ..c.clone() }))
+        .collect()
 }
 
 /// Every configuration of `configs` combined with every combination of the
@@ -227,6 +268,7 @@ pub fn sweep(
             precision: Some(config.precision),
             math: Some(config.math),
             multiband: Some(config.multiband),
+            relative_binning: Some(config.relative_binning),
             knobs: config.knobs.clone(),
             outputs: None,
             ..Options::default()
@@ -267,7 +309,8 @@ pub fn sweep(
         };
         let r = reference_out.get_or_insert_with(|| out.clone());
         let (output_error, grad_error, mismatch) = compare(&out, r, settings.psd.as_deref())?;
-        rows.push(Row { config, forward_us, grad_us, output_error, grad_error, mismatch, pareto: false, failure: None });
+        let delta_loss = loss_error(&out, r, &differentiated_outputs(compiled.ir()))?;
+        rows.push(Row { config, forward_us, grad_us, output_error, grad_error, mismatch, delta_loss, pareto: false, failure: None });
     }
     mark_pareto(&mut rows);
     Ok(rows)
@@ -344,6 +387,17 @@ fn compare(out: &Outputs, r: &Outputs, psd: Option<&str>) -> Result<(f64, Option
     Ok((output_error, grad_error, mismatch_max))
 }
 
+/// The largest `|a − r|` of the real scalar outputs named in `names`.
+fn loss_error(out: &Outputs, r: &Outputs, names: &[String]) -> Result<Option<f64>, Error> {
+    let mut worst: Option<f64> = None;
+    for name in names {
+        if let (Value::Real(a), Value::Real(b)) = (out.value(name)?, r.value(name)?) {
+            worst = Some(worst.map_or(0.0, |w: f64| w).max((a - b).abs()));
+        }
+    }
+    Ok(worst)
+}
+
 /// Marks the rows no other row dominates in (time, error).
 pub fn mark_pareto(rows: &mut [Row]) {
     let points: Vec<(f64, f64)> = rows.iter().map(|r| (r.time_us(), r.error())).collect();
@@ -365,7 +419,8 @@ fn opt(x: Option<f64>, f: impl Fn(f64) -> String) -> String {
 pub fn table(rows: &[Row]) -> String {
     let base = rows.first().filter(|r| r.failure.is_none()).map(Row::time_us);
     let with_knobs = rows.iter().any(|r| !r.config.knobs.is_empty());
-    let with_bands = rows.iter().any(|r| r.config.multiband != Multiband::Off);
+    let with_bands = rows.iter().any(|r| r.config.algorithm() != "exact");
+    let with_loss = rows.iter().any(|r| r.delta_loss.is_some());
     let mut sorted: Vec<&Row> = rows.iter().collect();
     sorted.sort_by(|a, b| a.failure.is_some().cmp(&b.failure.is_some()).then(a.time_us().total_cmp(&b.time_us())));
     let knobs = |r: &Row| {
@@ -375,31 +430,34 @@ pub fn table(rows: &[Row]) -> String {
             String::new()
         }
     };
-    let bands = |r: &Row| if with_bands { format!(" {} |", r.config.multiband) } else { String::new() };
+    let bands = |r: &Row| if with_bands { format!(" {} |", r.config.algorithm()) } else { String::new() };
     let mut s = String::new();
     let (kh, kr) = if with_knobs { (" knobs |", "---|") } else { ("", "") };
-    let (bh, br) = if with_bands { (" multiband |", "---|") } else { ("", "") };
+    let (bh, br) = if with_bands { (" algorithm |", "---|") } else { ("", "") };
+    let (lh, lr) = if with_loss { (" |Δ loss| |", "---:|") } else { ("", "") };
+    let loss = |r: &Row| if with_loss { format!(" {} |", opt(r.delta_loss, |e| format!("{e:.1e}"))) } else { String::new() };
     let _ = writeln!(
         s,
-        "| pareto | precision | math |{bh}{kh} forward µs | value+grad µs | speed-up | output rel. err | grad rel. err | mismatch |"
+        "| pareto | precision | math |{bh}{kh} forward µs | value+grad µs | speed-up | output rel. err | grad rel. err | mismatch |{lh}"
     );
-    let _ = writeln!(s, "|---|---|---|{br}{kr}---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---|---|---|{br}{kr}---:|---:|---:|---:|---:|---:|{lr}");
     for r in sorted {
         if let Some(f) = &r.failure {
             let _ = writeln!(
                 s,
-                "|  | {} | {} |{}{} failed: {} | | | | | |",
+                "|  | {} | {} |{}{} failed: {} | | | | | |{}",
                 r.config.precision,
                 r.config.math,
                 bands(r),
                 knobs(r),
-                f.replace('|', "/")
+                f.replace('|', "/"),
+                if with_loss { " |" } else { "" }
             );
             continue;
         }
         let _ = writeln!(
             s,
-            "| {} | {} | {} |{}{} {:.1} | {} | {} | {:.1e} | {} | {} |",
+            "| {} | {} | {} |{}{} {:.1} | {} | {} | {:.1e} | {} | {} |{}",
             if r.pareto { "*" } else { "" },
             r.config.precision,
             r.config.math,
@@ -411,6 +469,7 @@ pub fn table(rows: &[Row]) -> String {
             r.output_error,
             opt(r.grad_error, |e| format!("{e:.1e}")),
             opt(r.mismatch, |m| format!("{m:.1e}")),
+            loss(r),
         );
     }
     s
@@ -418,21 +477,25 @@ pub fn table(rows: &[Row]) -> String {
 
 /// The rows as CSV with a header line.
 pub fn csv(rows: &[Row]) -> String {
-    let mut s = String::from("precision,math,multiband,knobs,forward_us,grad_us,output_error,grad_error,mismatch,pareto,failure\n");
+    let mut s = String::from(
+        "precision,math,multiband,relative_binning,knobs,forward_us,grad_us,output_error,grad_error,mismatch,delta_loss,pareto,failure\n",
+    );
     let o = |x: Option<f64>| x.map_or(String::new(), |v| format!("{v:e}"));
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},\"{}\",{:e},{},{:e},{},{},{},\"{}\"",
+            "{},{},{},{},\"{}\",{:e},{},{:e},{},{},{},{},\"{}\"",
             r.config.precision,
             r.config.math,
             r.config.multiband,
+            r.config.relative_binning,
             r.config.knob_text(),
             r.forward_us,
             o(r.grad_us),
             r.output_error,
             o(r.grad_error),
             o(r.mismatch),
+            o(r.delta_loss),
             r.pareto,
             r.failure.as_deref().unwrap_or("").replace('"', "'")
         );
@@ -452,6 +515,7 @@ mod tests {
             output_error: e,
             grad_error: None,
             mismatch: None,
+            delta_loss: None,
             pareto: false,
             failure: None,
         }

@@ -12,6 +12,7 @@
 //! ```
 
 pub mod batch;
+mod buffers;
 pub mod checkpoint;
 pub mod dataset;
 pub mod fit;
@@ -21,10 +22,11 @@ pub mod optim;
 pub mod spectrum;
 pub mod train;
 
-use gwml_compiler::codegen::{self, BufferKind, Kernel};
+use buffers::Buffers;
+use gwml_compiler::codegen::{self, Kernel};
 use gwml_compiler::front::diagnostics::did_you_mean;
-use gwml_compiler::ir::{Elem, Function, Precision, Shape};
-use gwml_compiler::{CompileError, Options, PipelineError, Program, ScenePipeline};
+use gwml_compiler::ir::{Elem, Function, Shape};
+use gwml_compiler::{CompileError, KernelIr, Options, PipelineError, Program, ScenePipeline};
 use num_complex::Complex64 as C64;
 use std::fmt;
 use std::path::Path;
@@ -147,9 +149,28 @@ impl Model {
 pub struct Scene {
     /// Every IR stage of the scene.
     pub pipeline: ScenePipeline,
+    /// The forward-only computation, whole.
     forward_ir: Function,
-    forward: Kernel,
-    gradient: OnceLock<Result<Kernel, codegen::CodegenError>>,
+    forward: Compiled,
+    gradient: OnceLock<Result<Compiled, codegen::CodegenError>>,
+}
+
+/// One compiled kernel of a scene, and the prelude that computes its
+/// cached inputs from the data when staging split one off
+/// (`passes::stage`).
+struct Compiled {
+    main: (Function, Kernel),
+    prelude: Option<(Function, Kernel)>,
+}
+
+impl Compiled {
+    fn new(ir: &KernelIr) -> Result<Compiled, codegen::CodegenError> {
+        let prelude = match &ir.prelude {
+            Some(p) => Some((p.clone(), codegen::compile(p)?)),
+            None => None,
+        };
+        Ok(Compiled { main: (ir.main.clone(), codegen::compile(&ir.main)?), prelude })
+    }
 }
 
 impl fmt::Debug for Scene {
@@ -161,8 +182,8 @@ impl fmt::Debug for Scene {
 impl Scene {
     fn new(pipeline: ScenePipeline) -> Result<Scene, Error> {
         let forward_ir = pipeline.forward().map_err(Error::from)?;
-        let forward = codegen::compile(&forward_ir).map_err(Error::Codegen)?;
-        Ok(Scene { pipeline, forward_ir, forward, gradient: OnceLock::new() })
+        let forward = Compiled::new(&forward_ir).map_err(Error::Codegen)?;
+        Ok(Scene { pipeline, forward_ir: forward_ir.whole, forward, gradient: OnceLock::new() })
     }
 
     /// The IR that the gradient kernel runs (forward and adjoint).
@@ -177,82 +198,38 @@ impl Scene {
 
     /// The forward kernel.
     pub fn forward_kernel(&self) -> &Kernel {
-        &self.forward
+        &self.forward.main.1
+    }
+
+    /// The IR of the forward kernel's prelude, if staging split one off.
+    pub fn forward_prelude(&self) -> Option<&Function> {
+        self.forward.prelude.as_ref().map(|p| &p.0)
+    }
+
+    fn gradient(&self) -> Result<&Compiled, Error> {
+        self.gradient.get_or_init(|| Compiled::new(&self.pipeline.kernel)).as_ref().map_err(|e| Error::Codegen(e.clone()))
     }
 
     /// The forward+gradient kernel, compiling it on first use.
     pub fn gradient_kernel(&self) -> Result<&Kernel, Error> {
-        self.gradient.get_or_init(|| codegen::compile(&self.pipeline.optimized)).as_ref().map_err(|e| Error::Codegen(e.clone()))
+        Ok(&self.gradient()?.main.1)
     }
 
     /// Starts a run with every param at its default and inputs at their defaults.
     pub fn bind(&self) -> Run<'_> {
         let f = self.ir();
+        let inputs: Vec<Option<Vec<C64>>> = f.inputs.iter().map(|i| i.default.clone()).collect();
         Run {
             scene: self,
             params: f.params.iter().map(|p| p.default).collect(),
-            inputs: f.inputs.iter().map(|i| i.default.clone()).collect(),
-            stale: vec![false; f.inputs.len()],
-            scratch: Vec::new(),
-            allocated_for: None,
-            filled_for: None,
-            scalars: Vec::new(),
+            stale: vec![false; inputs.len()],
+            prelude_stale: vec![false; inputs.len()],
+            inputs,
+            main: Buffers::default(),
+            prelude: Buffers::default(),
+            cache: Vec::new(),
+            cache_for: None,
         }
-    }
-}
-
-/// Storage for one buffer, in its precision (see `codegen::BufferInfo`).
-enum Buffer {
-    F64(Vec<f64>),
-    F32(Vec<f32>),
-}
-
-impl Buffer {
-    /// Allocates fallibly, so a scene over a huge grid is an error, not an abort.
-    fn new(precision: Precision, floats: usize) -> Result<Buffer, Error> {
-        fn zeros<T: Clone + Default>(n: usize) -> Result<Vec<T>, Error> {
-            let mut v = Vec::new();
-            v.try_reserve_exact(n).map_err(|_| {
-                Error::Bind(format!("cannot allocate a buffer of {n} values: the scene's grids are too large for this machine's memory"))
-            })?;
-            v.resize(n, T::default());
-            Ok(v)
-        }
-        Ok(match precision {
-            Precision::F64 => Buffer::F64(zeros(floats)?),
-            Precision::F32 | Precision::Mixed => Buffer::F32(zeros(floats)?),
-        })
-    }
-    fn ptr(&mut self) -> *mut u8 {
-        match self {
-            Buffer::F64(v) => v.as_mut_ptr() as *mut u8,
-            Buffer::F32(v) => v.as_mut_ptr() as *mut u8,
-        }
-    }
-    /// The first `n` values times `scale`, in f64 (one pass, no per-element
-    /// dispatch: outputs are read after every call).
-    fn real(&self, n: usize, scale: f64) -> Vec<f64> {
-        // Written into a zeroed vector by index (not collected from an
-        // iterator) so the copy vectorises: outputs of 8,000 bins are
-        // copied on every call.
-        let mut out = vec![0.0; n];
-        match self {
-            Buffer::F64(v) => out.iter_mut().zip(&v[..n]).for_each(|(o, x)| *o = x * scale),
-            Buffer::F32(v) => out.iter_mut().zip(&v[..n]).for_each(|(o, x)| *o = *x as f64 * scale),
-        }
-        out
-    }
-
-    /// The first `n` interleaved (re, im) pairs times `scale`, as complex numbers.
-    fn complex(&self, n: usize, scale: f64) -> Vec<C64> {
-        let mut out = vec![C64::new(0.0, 0.0); n];
-        match self {
-            Buffer::F64(v) => out.iter_mut().zip(v[..2 * n].chunks_exact(2)).for_each(|(o, c)| *o = C64::new(c[0] * scale, c[1] * scale)),
-            Buffer::F32(v) => {
-                out.iter_mut().zip(v[..2 * n].chunks_exact(2)).for_each(|(o, c)| *o = C64::new(c[0] as f64 * scale, c[1] as f64 * scale))
-            }
-        }
-        out
     }
 }
 
@@ -324,20 +301,25 @@ fn unknown<'a>(kind: &'static str, name: &str, names: impl Iterator<Item = &'a s
 }
 
 /// Params and data bound to a scene, ready to run. Buffers are allocated on
-/// the first run and reused, so repeated runs do not allocate per-bin arrays.
+/// the first run and reused, so repeated runs do not allocate per-bin arrays;
+/// values the scene computes from the data alone (its prelude) are
+/// recomputed only after data are bound.
 pub struct Run<'s> {
     scene: &'s Scene,
     params: Vec<Option<f64>>,
+    /// The data of every input callers bind (cached inputs come after them).
     inputs: Vec<Option<Vec<C64>>>,
-    scratch: Vec<(bool, Buffer)>,
-    /// Which kernel's layout `scratch` was allocated for (forward or gradient).
-    allocated_for: Option<*const Kernel>,
-    /// Which kernel's buffers hold the tables and the bound inputs (but
-    /// those marked `stale`), or `None`: buffers are refilled only then.
-    filled_for: Option<*const Kernel>,
-    /// Per input, whether it was bound since its buffer was last filled.
+    /// Per input, whether it was bound since the main kernel's buffers were filled.
     stale: Vec<bool>,
-    scalars: Vec<f64>,
+    /// Per input, whether it was bound since the prelude's buffers were filled.
+    prelude_stale: Vec<bool>,
+    main: Buffers,
+    prelude: Buffers,
+    /// The prelude's outputs, the main kernel's cached inputs in order.
+    cache: Vec<Vec<C64>>,
+    /// The prelude kernel whose outputs `cache` holds, for the data bound
+    /// then (`None` after new data are bound).
+    cache_for: Option<*const Kernel>,
 }
 
 impl<'s> Run<'s> {
@@ -440,25 +422,61 @@ impl<'s> Run<'s> {
         stored.clear();
         stored.extend((0..len).map(|k| value(k) * info.scale));
         self.stale[i] = true;
+        self.prelude_stale[i] = true;
+        self.cache_for = None;
         Ok(self)
     }
 
     /// Runs the forward kernel.
     pub fn forward(&mut self) -> Result<Outputs, Error> {
-        let kernel = &self.scene.forward;
-        let func = &self.scene.forward_ir;
-        self.execute(kernel, func)
+        let scene = self.scene;
+        self.execute(&scene.forward)
     }
 
     /// Runs the fused forward+gradient kernel.
     pub fn value_and_grad(&mut self) -> Result<Outputs, Error> {
-        let kernel = self.scene.gradient_kernel()?;
-        let func = self.scene.ir();
-        self.execute(kernel, func)
+        let scene = self.scene;
+        self.execute(scene.gradient()?)
     }
 
-    fn execute(&mut self, kernel: &Kernel, func: &Function) -> Result<Outputs, Error> {
-        let layout = &kernel.layout;
+    /// The data of input `i` of a kernel's function: bound by the caller,
+    /// or (after them) computed by the prelude.
+    fn data<'a>(inputs: &'a [Option<Vec<C64>>], cache: &'a [Vec<C64>], func: &Function, i: usize) -> Result<&'a [C64], Error> {
+        if i >= inputs.len() {
+            return Ok(&cache[i - inputs.len()]);
+        }
+        inputs[i].as_deref().ok_or_else(|| {
+            let name = &func.inputs[i].name;
+            Error::Bind(format!("input `{name}` is not bound and has no default; bind it (e.g. `--input {name}=FILE.npy`)"))
+        })
+    }
+
+    /// Runs `compiled.prelude` when the data changed since its outputs were
+    /// kept (or another kernel's prelude produced them); returns whether it ran.
+    fn run_prelude(&mut self, compiled: &Compiled, params: &[f64]) -> Result<bool, Error> {
+        let Some((func, kernel)) = &compiled.prelude else { return Ok(false) };
+        if self.cache_for == Some(kernel as *const Kernel) {
+            return Ok(false);
+        }
+        let (inputs, stale) = (&self.inputs, &self.prelude_stale);
+        self.prelude.call(kernel, func, params, &|i| Self::data(inputs, &[], func, i), &|i| stale[i])?;
+        self.prelude_stale.iter_mut().for_each(|s| *s = false);
+        self.cache.clear();
+        for oi in 0..func.outputs.len() {
+            let v = self.prelude.output(kernel, func, oi);
+            if !value_finite(&v) {
+                return Err(Error::Bind(
+                    "the values the scene computes from its data alone are not finite (NaN or infinity); check the data".into(),
+                ));
+            }
+            self.cache.push(as_complex(v));
+        }
+        self.cache_for = Some(kernel as *const Kernel);
+        Ok(true)
+    }
+
+    fn execute(&mut self, compiled: &Compiled) -> Result<Outputs, Error> {
+        let (func, kernel) = (&compiled.main.0, &compiled.main.1);
         let mut params = Vec::with_capacity(func.params.len());
         for (p, v) in func.params.iter().zip(&self.params) {
             let v = v.ok_or_else(|| Error::Bind(format!("param `{}` has no default; set it (e.g. `--set {}=VALUE`)", p.name, p.name)))?;
@@ -469,89 +487,31 @@ impl<'s> Run<'s> {
             }
             params.push(v * p.scale);
         }
-        // (Re)allocate buffers for this kernel's layout.
-        let floats = |b: &codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
-        let refill_all = self.filled_for != Some(kernel as *const Kernel);
-        if refill_all || self.stale.iter().any(|s| *s) {
-            if self.allocated_for != Some(kernel as *const Kernel) {
-                self.scratch =
-                    layout.buffers.iter().map(|b| Ok((b.complex, Buffer::new(b.precision, floats(b))?))).collect::<Result<_, Error>>()?;
-                self.allocated_for = Some(kernel as *const Kernel);
-            }
-            for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
-                match info.kind {
-                    BufferKind::Input(i) if refill_all || self.stale[i] => {
-                        let data = self.inputs[i].as_ref().ok_or_else(|| {
-                            Error::Bind(format!(
-                                "input `{}` is not bound and has no default; bind it (e.g. `--input {}=FILE.npy`)",
-                                func.inputs[i].name, func.inputs[i].name
-                            ))
-                        })?;
-                        fill(buf, data, info.complex);
-                    }
-                    BufferKind::Table(k) if refill_all => {
-                        let data: Vec<C64> = func.tables[k].data.iter().map(|x| C64::new(*x, 0.0)).collect();
-                        fill(buf, &data, false);
-                    }
-                    _ => {}
-                }
-            }
-            self.stale.iter_mut().for_each(|s| *s = false);
-            self.filled_for = Some(kernel as *const Kernel);
-        }
-        self.scalars.clear();
-        self.scalars.resize(layout.scalar_slots, 0.0);
-        let ptrs: Vec<*mut u8> = self.scratch.iter_mut().map(|(_, b)| b.ptr()).collect();
-        // SAFETY: params has one entry per scene param; every buffer was
-        // allocated from the kernel's own layout (length and precision), and
-        // scalars has layout.scalar_slots entries.
-        unsafe { kernel.call(params.as_ptr(), ptrs.as_ptr(), self.scalars.as_mut_ptr()) };
-        let read_scalar = |v: gwml_compiler::ir::Value| -> Value {
-            let s = layout.scalars.iter().find(|s| s.value == v).expect("every scalar root has a slot");
-            if s.complex {
-                Value::Complex(C64::new(self.scalars[s.slot], self.scalars[s.slot + 1]))
-            } else {
-                Value::Real(self.scalars[s.slot])
-            }
-        };
-        let mut values = Vec::new();
-        for (oi, o) in func.outputs.iter().enumerate() {
-            // Rescaled f32 kernels return outputs times 2^-exponent.
-            let scale = 2f64.powi(o.exponent);
-            let v = if func.ty(o.value).shape == Shape::Scalar {
-                match read_scalar(o.value) {
-                    Value::Real(x) => Value::Real(x * scale),
-                    Value::Complex(z) => Value::Complex(z * scale),
-                    other => other,
-                }
-            } else {
-                let k = layout.outputs[oi].expect("array outputs have a buffer");
-                let (complex, buf) = &self.scratch[k];
-                let n = layout.buffers[k].len;
-                if *complex {
-                    Value::ComplexArray(buf.complex(n, scale))
-                } else {
-                    Value::RealArray(buf.real(n, scale))
-                }
-            };
-            values.push((o.name.clone(), v));
-        }
+        let recomputed = self.run_prelude(compiled, &params)?;
+        let n_bound = self.inputs.len();
+        let (inputs, cache, stale) = (&self.inputs, &self.cache, &self.stale);
+        let stale = |i: usize| if i < n_bound { stale[i] } else { recomputed };
+        self.main.call(kernel, func, &params, &|i| Self::data(inputs, cache, func, i), &stale)?;
+        self.stale.iter_mut().for_each(|s| *s = false);
+        let values: Vec<(String, Value)> =
+            (0..func.outputs.len()).map(|oi| (func.outputs[oi].name.clone(), self.main.output(kernel, func, oi))).collect();
         let mut grads = Vec::new();
         for g in &func.grads {
             let Some(v) = g.value else { continue };
-            let Value::Real(x) = read_scalar(v) else {
+            let Value::Real(x) = self.main.scalar(kernel, v) else {
                 continue;
             };
             let p = &func.params[g.param];
             grads.push((func.outputs[g.output].name.clone(), p.name.clone(), x * p.scale));
         }
+        let layout = &kernel.layout;
         let mut input_grads = Vec::new();
         for (g, buffer) in func.input_grads.iter().zip(&layout.input_grads) {
             let Some(v) = g.value else { continue };
             let scale = func.inputs[g.input].scale;
             let data = match buffer {
-                Some(k) => self.scratch[*k].1.real(layout.buffers[*k].len, scale),
-                None => match read_scalar(v) {
+                Some(k) => self.main.scratch[*k].1.real(layout.buffers[*k].len, scale),
+                None => match self.main.scalar(kernel, v) {
                     Value::Real(x) => vec![x * scale],
                     _ => continue,
                 },
@@ -577,6 +537,16 @@ impl<'s> Run<'s> {
     }
 }
 
+/// A value as complex numbers (one for a scalar).
+fn as_complex(v: Value) -> Vec<C64> {
+    match v {
+        Value::Real(x) => vec![C64::new(x, 0.0)],
+        Value::Complex(z) => vec![z],
+        Value::RealArray(a) => a.into_iter().map(|x| C64::new(x, 0.0)).collect(),
+        Value::ComplexArray(a) => a,
+    }
+}
+
 fn value_finite(v: &Value) -> bool {
     match v {
         Value::Real(x) => x.is_finite(),
@@ -599,31 +569,6 @@ fn all_finite<T>(xs: &[T], f: impl Fn(&T) -> f64) -> bool {
         }
     }
     acc.iter().sum::<f64>() + tail == 0.0
-}
-
-fn fill(buf: &mut Buffer, data: &[C64], complex: bool) {
-    match buf {
-        Buffer::F64(v) => {
-            for (i, z) in data.iter().enumerate() {
-                if complex {
-                    v[2 * i] = z.re;
-                    v[2 * i + 1] = z.im;
-                } else {
-                    v[i] = z.re;
-                }
-            }
-        }
-        Buffer::F32(v) => {
-            for (i, z) in data.iter().enumerate() {
-                if complex {
-                    v[2 * i] = z.re as f32;
-                    v[2 * i + 1] = z.im as f32;
-                } else {
-                    v[i] = z.re as f32;
-                }
-            }
-        }
-    }
 }
 
 /// Scenes are shared between threads (batches run one `Run` per thread).

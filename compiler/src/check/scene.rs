@@ -51,12 +51,16 @@ impl<'a> Checker<'a> {
                         Ok(m) => func.multiband = m,
                         Err(e) => self.error(setting_error(e)),
                     },
+                    "relative_binning" => match value.node.parse() {
+                        Ok(r) => func.relative_binning = r,
+                        Err(e) => self.error(setting_error(e)),
+                    },
                     other => {
                         let mut d = Diagnostic::error(name.span, format!("unknown scene setting `{other}`")).with_label("not a knob");
-                        d = match did_you_mean(other, ["precision", "math", "multiband"]) {
+                        d = match did_you_mean(other, ["precision", "math", "multiband", "relative_binning"]) {
                             Some(s) => d.with_help(format!("did you mean `{s}`?")),
                             None => d.with_help(
-                                "the settings are `precision: f64 | f32 | mixed`, `math: exact | fast | fastest` and `multiband: off | TOLERANCE`",
+                                "the settings are `precision: f64 | f32 | mixed`, `math: exact | fast | fastest`, `multiband: off | TOLERANCE` and `relative_binning: off | BINS`",
                             ),
                         };
                         self.error(d);

@@ -63,11 +63,8 @@ impl Builder {
             Op::Tensor(_, g, ..) => Ty { elem: Elem::Real, shape: Shape::Grid(g) },
             Op::Band(o, n, _) => {
                 let band = &self.func.bands[n as usize];
-                match o {
-                    BandOp::Cis => Ty { elem: Elem::Complex, shape: Shape::Grid(band.fine) },
-                    BandOp::Interp => Ty { elem: Elem::Real, shape: Shape::Grid(band.fine) },
-                    BandOp::InterpT => Ty { elem: Elem::Real, shape: Shape::Grid(band.coarse) },
-                }
+                let elem = if o == BandOp::Cis { Elem::Complex } else { Elem::Real };
+                Ty { elem, shape: Shape::Grid(band.grid_on(o.sides().1)) }
             }
         }
     }
@@ -245,7 +242,7 @@ impl Builder {
             },
             // Transforms are linear: the transform of zero is zero.
             Op::Dft(_, a) if zero(self, a) => Some(self.zero(ty)),
-            Op::Band(BandOp::Interp | BandOp::InterpT, _, a) if zero(self, a) => Some(self.zero(ty)),
+            Op::Band(o, _, a) if o != BandOp::Cis && zero(self, a) => Some(self.zero(ty)),
             // Tensor ops are linear in each operand, except that pooling's
             // first operand only chooses positions.
             Op::Tensor(t, _, a, b)

@@ -2,7 +2,7 @@
 //! instructions, outputs and requested gradients.
 
 use super::ops::*;
-use super::settings::{MathMode, Multiband, Precision};
+use super::settings::{MathMode, Multiband, Precision, RelativeBinning};
 use super::types::*;
 
 /// A uniform grid: `len` points `start + i * step` (base units). Grids of
@@ -22,6 +22,13 @@ pub struct Grid {
     pub unit: String,
     /// Tensor dimensions (product `len`); `[len]` for a physical grid.
     pub dims: Vec<usize>,
+}
+
+impl Grid {
+    /// An index grid of `len` points (start 0, step 1, no unit).
+    pub fn index(name: String, len: usize) -> Grid {
+        Grid { name, start: 0.0, step: 1.0, len, unit: String::new(), dims: vec![len] }
+    }
 }
 
 /// A scalar parameter of the scene.
@@ -82,6 +89,9 @@ pub enum InputRole {
     /// binds fresh standard normal values per example and step, a sampler
     /// per draw.
     Noise,
+    /// A value computed from the data alone by the scene's prelude (see
+    /// `passes::stage`), which the runtime binds: not for callers.
+    Cached,
 }
 
 /// A real array over a grid computed at compile time.
@@ -104,9 +114,37 @@ pub struct Banding {
     pub coarse: GridId,
     /// Fine indices of the nodes, increasing, from 0 to the last point.
     pub nodes: Vec<u32>,
-    /// The largest error of the interpolated phase at the scene's
-    /// defaults, in radians (for `--emit ir`).
+    /// For multibanding, the largest error of the interpolated phase at
+    /// the scene's defaults; for relative binning, the bound on how much
+    /// any waveform's phase can differ from the fiducial's across one band
+    /// (Zackay, Dai & Venumadhav 2018). In radians, for `--emit ir`.
     pub error: f64,
+    /// Which pass made it.
+    pub purpose: BandPurpose,
+}
+
+/// What a [`Banding`] is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BandPurpose {
+    /// `passes::multiband`: a phase interpolated between the nodes.
+    Multiband,
+    /// `passes::relbin`: the edges of the bins; a waveform's ratio to the
+    /// fiducial interpolated between them, likelihood sums from summary data.
+    RelativeBinning,
+    /// `passes::relbin`: the midpoint of each bin of the banding before it
+    /// (and its last point), where the ratio is also evaluated. No band op
+    /// refers to it; its nodes need not start at 0.
+    Midpoints,
+}
+
+impl Banding {
+    /// The grid on `side` of the banding.
+    pub fn grid_on(&self, side: BandSide) -> GridId {
+        match side {
+            BandSide::Fine => self.fine,
+            BandSide::Coarse => self.coarse,
+        }
+    }
 }
 
 /// A named result of the scene.
@@ -187,6 +225,8 @@ pub struct Function {
     pub math: MathMode,
     /// Multibanding of `cis` on grids (applied by `passes::multiband`).
     pub multiband: Multiband,
+    /// Relative binning of likelihood sums (applied by `passes::relbin`).
+    pub relative_binning: RelativeBinning,
     /// The coarse grids [`Op::Band`] ops refer to.
     pub bands: Vec<Banding>,
 }

@@ -21,5 +21,5 @@ mod verify;
 pub use display::Marked;
 pub use function::*;
 pub use ops::*;
-pub use settings::{MathMode, Multiband, Precision, UnknownSetting};
+pub use settings::{MathMode, Multiband, Precision, RelativeBinning, UnknownSetting};
 pub use types::*;

@@ -316,6 +316,28 @@ pub enum BandOp {
     /// Real `y` on the fine grid → real `Lᵀ y` on the coarse grid: the
     /// transpose of [`BandOp::Interp`] (the adjoint of both others).
     InterpT,
+    /// Real `y` on the fine grid → real sums over each node's band on the
+    /// coarse grid: `s_j = Σ y_k` over `i_j ≤ k < i_{j+1}`, and the last
+    /// node's is the last point (relative binning's summary data, see
+    /// `passes::relbin`).
+    BinSum,
+    /// Real `x` on the coarse grid → real `y_k = x_j` on the fine points of
+    /// node `j`'s band: the transpose of [`BandOp::BinSum`].
+    BinSpread,
+    /// Real `x` on the coarse grid → `y_j = x_{j+1}`, 0 at the last node.
+    Next,
+    /// Real `x` on the coarse grid → `y_j = x_{j−1}`, 0 at the first node:
+    /// the transpose of [`BandOp::Next`].
+    Prev,
+}
+
+/// Which grid of a [`Banding`](super::Banding) a band op's value lives on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BandSide {
+    /// The fine grid.
+    Fine,
+    /// The coarse grid of the nodes.
+    Coarse,
 }
 
 impl BandOp {
@@ -325,6 +347,32 @@ impl BandOp {
             BandOp::Cis => "band_cis",
             BandOp::Interp => "band_interp",
             BandOp::InterpT => "band_interp_t",
+            BandOp::BinSum => "band_sum",
+            BandOp::BinSpread => "band_spread",
+            BandOp::Next => "band_next",
+            BandOp::Prev => "band_prev",
+        }
+    }
+
+    /// The grids of the operand and of the result.
+    pub fn sides(&self) -> (BandSide, BandSide) {
+        match self {
+            BandOp::Cis | BandOp::Interp | BandOp::BinSpread => (BandSide::Coarse, BandSide::Fine),
+            BandOp::InterpT | BandOp::BinSum => (BandSide::Fine, BandSide::Coarse),
+            BandOp::Next | BandOp::Prev => (BandSide::Coarse, BandSide::Coarse),
+        }
+    }
+
+    /// The transpose of a linear op (every op but `Cis`).
+    pub fn transpose(&self) -> BandOp {
+        match self {
+            BandOp::Interp => BandOp::InterpT,
+            BandOp::InterpT => BandOp::Interp,
+            BandOp::BinSum => BandOp::BinSpread,
+            BandOp::BinSpread => BandOp::BinSum,
+            BandOp::Next => BandOp::Prev,
+            BandOp::Prev => BandOp::Next,
+            BandOp::Cis => BandOp::Cis,
         }
     }
 }

@@ -162,6 +162,50 @@ impl FromStr for Multiband {
     }
 }
 
+/// Relative binning (heterodyning) of likelihood sums (the scene's
+/// `relative_binning` setting; `passes::relbin`): each sum over a grid of
+/// an expression at most quadratic in one waveform `h` is computed from
+/// summary data of the fiducial waveform `h0` (the waveform at the
+/// params' defaults) over `bins` frequency bins, with `h / h0` linear in
+/// each bin (Zackay, Dai & Venumadhav 2018, arXiv:1806.08792).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum RelativeBinning {
+    /// Every sum computed over every point.
+    #[default]
+    Off,
+    /// Number of bins, equal in the bound on the phase difference (as
+    /// jimgw's `HeterodynedTransientLikelihoodFD` chooses them).
+    Bins(u32),
+}
+
+impl RelativeBinning {
+    /// Most bins accepted.
+    pub const MAX_BINS: u32 = 100_000;
+}
+
+impl fmt::Display for RelativeBinning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RelativeBinning::Off => f.write_str("off"),
+            RelativeBinning::Bins(n) => write!(f, "{n}"),
+        }
+    }
+}
+
+impl FromStr for RelativeBinning {
+    type Err = UnknownSetting;
+    fn from_str(s: &str) -> Result<RelativeBinning, UnknownSetting> {
+        let help = "off, or the number of frequency bins, a whole number from 2 to 100000 such as 100";
+        match s {
+            "off" => Ok(RelativeBinning::Off),
+            _ => match s.parse::<u32>() {
+                Ok(n) if (2..=Self::MAX_BINS).contains(&n) => Ok(RelativeBinning::Bins(n)),
+                _ => Err(UnknownSetting { setting: "relative binning", found: s.to_string(), help }),
+            },
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -174,6 +218,17 @@ mod tests {
         for bad in ["0", "-1e-3", "2", "fine", "nan"] {
             let e = bad.parse::<Multiband>().unwrap_err();
             assert!(e.help.contains("radians"), "{bad}: {}", e.help);
+        }
+    }
+
+    #[test]
+    fn relative_binning_parses_off_and_bin_counts() {
+        assert_eq!("off".parse::<RelativeBinning>(), Ok(RelativeBinning::Off));
+        assert_eq!("100".parse::<RelativeBinning>(), Ok(RelativeBinning::Bins(100)));
+        assert_eq!(RelativeBinning::Bins(60).to_string().parse::<RelativeBinning>(), Ok(RelativeBinning::Bins(60)));
+        for bad in ["0", "1", "0.5", "-3", "1e2", "many", "100001"] {
+            let e = bad.parse::<RelativeBinning>().unwrap_err();
+            assert!(e.help.contains("bins"), "{bad}: {}", e.help);
         }
     }
 

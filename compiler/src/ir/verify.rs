@@ -42,10 +42,7 @@ impl Function {
                 }
                 Op::Band(o, n, a) => match self.bands.get(n as usize) {
                     Some(band) => {
-                        let (from, to) = match o {
-                            BandOp::Cis | BandOp::Interp => (band.coarse, band.fine),
-                            BandOp::InterpT => (band.fine, band.coarse),
-                        };
+                        let (from, to) = (band.grid_on(o.sides().0), band.grid_on(o.sides().1));
                         let nodes_ok = band.nodes.len() == self.grid(band.coarse).len
                             && band.nodes.first() == Some(&0)
                             && band.nodes.last().map(|&l| l as usize + 1) == Some(self.grid(band.fine).len)

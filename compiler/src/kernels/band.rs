@@ -8,7 +8,7 @@
 //! multiply per point in between, on four interleaved chains (so the
 //! multiplies do not wait on each other).
 
-use crate::ir::BandOp;
+use crate::ir::{BandOp, BandSide};
 use num_complex::Complex64 as C64;
 
 /// Most fine points advanced by rotation before an exact restart. The
@@ -34,20 +34,25 @@ impl BandPlan {
         self.nodes.last().map_or(0, |&l| l as usize + 1)
     }
 
+    fn len_on(&self, side: BandSide) -> usize {
+        match side {
+            BandSide::Fine => self.fine_len(),
+            BandSide::Coarse => self.nodes.len(),
+        }
+    }
+
     /// Floats read: the operand's element count.
     pub fn operand_len(&self) -> usize {
-        match self.op {
-            BandOp::Cis | BandOp::Interp => self.nodes.len(),
-            BandOp::InterpT => self.fine_len(),
-        }
+        self.len_on(self.op.sides().0)
     }
 
     /// Floats written (a complex element counts two).
     pub fn out_floats(&self) -> usize {
-        match self.op {
-            BandOp::Cis => 2 * self.fine_len(),
-            BandOp::Interp => self.fine_len(),
-            BandOp::InterpT => self.nodes.len(),
+        let n = self.len_on(self.op.sides().1);
+        if self.op == BandOp::Cis {
+            2 * n
+        } else {
+            n
         }
     }
 }
@@ -73,9 +78,9 @@ fn for_each_point(nodes: &[u32], mut each: impl FnMut(usize, usize, f64)) {
 /// interpolated phase (the oracle for the rotation).
 pub fn apply(op: BandOp, nodes: &[u32], x: &[C64]) -> Vec<C64> {
     let re: Vec<f64> = x.iter().map(|z| z.re).collect();
-    let linear = if op == BandOp::InterpT { BandOp::InterpT } else { BandOp::Interp };
-    let len = if op == BandOp::InterpT { nodes.len() } else { nodes.last().map_or(0, |&l| l as usize + 1) };
-    let mut out = vec![0.0; len];
+    let linear = if op == BandOp::Cis { BandOp::Interp } else { op };
+    let plan = BandPlan { op: linear, nodes: nodes.to_vec() };
+    let mut out = vec![0.0; plan.out_floats()];
     run(linear, nodes, &re, &mut out);
     out.into_iter().map(|v| if op == BandOp::Cis { C64::from_polar(1.0, v) } else { C64::new(v, 0.0) }).collect()
 }
@@ -174,6 +179,24 @@ fn run<I: Elt, O: Elt>(op: BandOp, nodes: &[u32], x: &[I], out: &mut [O]) {
                 *o = O::put(a);
             }
         }
+        BandOp::BinSum => {
+            let mut acc = vec![0.0f64; nodes.len()];
+            for_each_point(nodes, |k, j, _| acc[j] += x[k].get());
+            for (o, a) in out.iter_mut().zip(acc) {
+                *o = O::put(a);
+            }
+        }
+        BandOp::BinSpread => for_each_point(nodes, |k, j, _| out[k] = O::put(x[j].get())),
+        BandOp::Next => {
+            for (j, o) in out.iter_mut().enumerate() {
+                *o = O::put(x.get(j + 1).map_or(0.0, |v| v.get()));
+            }
+        }
+        BandOp::Prev => {
+            for (j, o) in out.iter_mut().enumerate() {
+                *o = O::put(if j == 0 { 0.0 } else { x[j - 1].get() });
+            }
+        }
     }
 }
 
@@ -255,15 +278,29 @@ mod tests {
     }
 
     #[test]
-    fn the_transpose_is_the_adjoint_of_interpolation() {
-        // <L x, y> = <x, Lᵀ y> for arbitrary x, y.
+    fn each_transpose_is_the_adjoint_of_its_op() {
+        // <A x, y> = <x, Aᵀ y> for arbitrary x, y, for every linear op.
         let nodes = [0u32, 1, 5, 6, 20];
-        let x: Vec<C64> = (0..nodes.len()).map(|j| C64::new((j as f64 * 1.7).sin(), 0.0)).collect();
-        let y: Vec<C64> = (0..21).map(|k| C64::new((k as f64 * 0.3).cos() + 0.1, 0.0)).collect();
-        let lx = apply(BandOp::Interp, &nodes, &x);
-        let lty = apply(BandOp::InterpT, &nodes, &y);
-        let left: f64 = lx.iter().zip(&y).map(|(a, b)| a.re * b.re).sum();
-        let right: f64 = x.iter().zip(&lty).map(|(a, b)| a.re * b.re).sum();
-        assert!((left - right).abs() < 1e-12 * left.abs().max(1.0), "{left} vs {right}");
+        let values = |n: usize, s: f64| (0..n).map(|k| C64::new((k as f64 * s).sin() + 0.1, 0.0)).collect::<Vec<_>>();
+        for op in [BandOp::Interp, BandOp::InterpT, BandOp::BinSum, BandOp::BinSpread, BandOp::Next, BandOp::Prev] {
+            let p = plan(op, &nodes);
+            let x = values(p.operand_len(), 1.7);
+            let y = values(p.out_floats(), 0.3);
+            let ax = apply(op, &nodes, &x);
+            let aty = apply(op.transpose(), &nodes, &y);
+            let left: f64 = ax.iter().zip(&y).map(|(a, b)| a.re * b.re).sum();
+            let right: f64 = x.iter().zip(&aty).map(|(a, b)| a.re * b.re).sum();
+            assert!((left - right).abs() < 1e-12 * left.abs().max(1.0), "{op:?}: {left} vs {right}");
+        }
+    }
+
+    #[test]
+    fn bin_sums_cover_every_point_once() {
+        let nodes = [0u32, 2, 6];
+        let x: Vec<C64> = (0..7).map(|k| C64::new((k + 1) as f64, 0.0)).collect();
+        let s: Vec<f64> = apply(BandOp::BinSum, &nodes, &x).iter().map(|z| z.re).collect();
+        assert_eq!(s, vec![1.0 + 2.0, 3.0 + 4.0 + 5.0 + 6.0, 7.0]);
+        let next: Vec<f64> = apply(BandOp::Next, &nodes, &x[..3]).iter().map(|z| z.re).collect();
+        assert_eq!(next, vec![2.0, 3.0, 0.0]);
     }
 }

@@ -315,8 +315,8 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value, active: &[bool]) -> Vec
         Op::Tensor(t, _, x, y) => tensor_rule(b, t, x, y, g).into_iter().filter(|(v, _)| want(*v)).collect(),
         // z = e^{i L(x)}: as for `cis`, the adjoint of the interpolated
         // phase is Im(z̄ · conj(z)) per fine point; L's transpose takes it
-        // to the nodes. Interpolation and its transpose are each other's
-        // adjoints.
+        // to the nodes. Every other band op is linear: its adjoint is its
+        // transpose.
         Op::Band(o, n, a) => {
             let back = |b: &mut Builder, o: BandOp, v: Value| b.emit(Op::Band(o, n, v));
             match o {
@@ -326,8 +326,7 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value, active: &[bool]) -> Vec
                     let per_point = b.unary(UnOp::Im, w);
                     vec![(a, back(b, BandOp::InterpT, per_point))]
                 }
-                BandOp::Interp => vec![(a, back(b, BandOp::InterpT, g))],
-                BandOp::InterpT => vec![(a, back(b, BandOp::Interp, g))],
+                linear => vec![(a, back(b, linear.transpose(), g))],
             }
         }
         Op::Reduce(Reduce::Max, a) => {

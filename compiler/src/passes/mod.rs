@@ -4,9 +4,13 @@
 //! - [`prune`]: keep only what the requested outputs and gradients need (DCE).
 //! - [`multiband`]: with the scene's `multiband` setting, `cis` of a phase
 //!   over a grid computed on a coarse subset of the grid's points.
+//! - [`relbin`]: with the scene's `relative_binning` setting, likelihood
+//!   sums from summary data of a fiducial waveform over a few bins.
 //! - [`adjoint`]: symbolic reverse-mode differentiation with activity analysis.
 //! - [`simplify`]: rebuild through the folding builder (CSE, constant
 //!   folding, algebraic identities), then prune.
+//! - [`stage`]: split off the values computed from the data alone (a
+//!   prelude the runtime runs once per bound input).
 //! - [`specialise`]: fold what the grid fixes into precomputed tables.
 //! - [`precision`]: the analysis of which values mixed precision computes
 //!   in f64, and of magnitudes at the defaults (used by rescale and codegen).
@@ -17,12 +21,15 @@ mod adjoint;
 pub mod multiband;
 pub mod precision;
 mod prune;
+pub mod relbin;
 mod rescale;
 mod specialise;
+pub mod stage;
 
 pub use adjoint::adjoint;
 pub use multiband::multiband;
 pub use prune::prune;
+pub use relbin::relbin;
 pub use rescale::rescale;
 pub use specialise::specialise;
 

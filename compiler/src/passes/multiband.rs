@@ -36,7 +36,7 @@ pub const MAX_BAND: usize = 4096;
 /// Applies the scene's multibanding setting (nothing when it is off).
 pub fn multiband(func: &Function) -> Function {
     let Multiband::Tolerance(tolerance) = func.multiband else { return func.clone() };
-    let mut cone = Cone { func, memo: HashMap::new() };
+    let mut cone = Cone::new(func);
     // Phases fixed by the grid alone are folded into tables by
     // `specialise`, exactly: only those that vary from call to call are banded.
     let mut varies = vec![false; func.insts.len()];
@@ -87,16 +87,9 @@ pub fn multiband(func: &Function) -> Function {
         let existing = b.func.bands.iter().position(|band| band.fine == g && band.nodes == nodes);
         let n = existing.unwrap_or_else(|| {
             let fine = b.func.grid(g).clone();
-            b.func.grids.push(Grid {
-                name: format!("{}_bands", fine.name),
-                start: 0.0,
-                step: 1.0,
-                len: nodes.len(),
-                unit: String::new(),
-                dims: vec![nodes.len()],
-            });
+            b.func.grids.push(Grid::index(format!("{}_bands", fine.name), nodes.len()));
             let coarse = GridId(b.func.grids.len() as u32 - 1);
-            b.func.bands.push(Banding { fine: g, coarse, nodes, error });
+            b.func.bands.push(Banding { fine: g, coarse, nodes, error, purpose: BandPurpose::Multiband });
             b.func.bands.len() - 1
         });
         banding_of.insert(i, n as u32);
@@ -122,13 +115,19 @@ pub fn multiband(func: &Function) -> Function {
 /// Which grid arrays can be recomputed on a coarse subset of their grid:
 /// elementwise arithmetic on the grid's coordinates, tables and broadcast
 /// scalars (no input arrays, transforms or tensor ops).
-struct Cone<'a> {
+pub(super) struct Cone<'a> {
     func: &'a Function,
     memo: HashMap<usize, bool>,
 }
 
-impl Cone<'_> {
-    fn clonable(&mut self, v: Value, g: GridId) -> bool {
+impl<'a> Cone<'a> {
+    /// No value examined yet.
+    pub(super) fn new(func: &'a Function) -> Cone<'a> {
+        Cone { func, memo: HashMap::new() }
+    }
+
+    /// Whether grid array `v` (on `g`) can be recomputed on a coarse grid.
+    pub(super) fn clonable(&mut self, v: Value, g: GridId) -> bool {
         let inst = self.func.insts[v.index()];
         if inst.ty.shape == Shape::Scalar {
             return true;
@@ -151,7 +150,7 @@ impl Cone<'_> {
 
 /// The value of fine array `x` recomputed on the coarse grid of banding
 /// `n` (scalars are shared with the fine computation).
-fn clone_onto(
+pub(super) fn clone_onto(
     func: &Function,
     b: &mut Builder,
     map: &[Value],

@@ -249,12 +249,12 @@ impl Rescaler<'_> {
                 let (vx, vy, e) = self.common(x, y);
                 (self.b.emit(Op::Select(map(self, c), vx, vy)), e)
             }
-            Op::Broadcast(a, _) | Op::Reduce(_, a) | Op::Dft(_, a) | Op::Band(BandOp::Interp | BandOp::InterpT, _, a) => {
-                (self.b.emit(inst.op.map_operands(|v| map(self, v))), exp(self, a))
-            }
             Op::Band(BandOp::Cis, n, a) => {
                 let v = self.at_true_scale(a);
                 (self.b.emit(Op::Band(BandOp::Cis, n, v)), 0)
+            }
+            Op::Broadcast(a, _) | Op::Reduce(_, a) | Op::Dft(_, a) | Op::Band(_, _, a) => {
+                (self.b.emit(inst.op.map_operands(|v| map(self, v))), exp(self, a))
             }
             Op::Tensor(..) => {
                 let scaled: Vec<(Value, Value)> = inst.op.operands().into_iter().map(|v| (v, self.at_true_scale(v))).collect();
