@@ -227,8 +227,8 @@ impl Scene {
             inputs,
             main: Buffers::default(),
             prelude: Buffers::default(),
-            cache: Vec::new(),
-            cache_for: None,
+            caches: Vec::new(),
+            prelude_runs: 0,
         }
     }
 }
@@ -315,11 +315,10 @@ pub struct Run<'s> {
     prelude_stale: Vec<bool>,
     main: Buffers,
     prelude: Buffers,
-    /// The prelude's outputs, the main kernel's cached inputs in order.
-    cache: Vec<Vec<C64>>,
-    /// The prelude kernel whose outputs `cache` holds, for the data bound
-    /// then (`None` after new data are bound).
-    cache_for: Option<*const Kernel>,
+    /// Per prelude kernel (forward, gradient) run since data were last
+    /// bound: its outputs, the main kernel's cached inputs in order.
+    caches: Vec<(*const Kernel, Vec<Vec<C64>>)>,
+    prelude_runs: usize,
 }
 
 impl<'s> Run<'s> {
@@ -423,8 +422,15 @@ impl<'s> Run<'s> {
         stored.extend((0..len).map(|k| value(k) * info.scale));
         self.stale[i] = true;
         self.prelude_stale[i] = true;
-        self.cache_for = None;
+        self.caches.clear();
         Ok(self)
+    }
+
+    /// How many times this run computed the values its scene takes from
+    /// the data alone (its prelude, see `passes::stage`): once per bound
+    /// data and kernel, not once per call.
+    pub fn prelude_runs(&self) -> usize {
+        self.prelude_runs
     }
 
     /// Runs the forward kernel.
@@ -451,17 +457,18 @@ impl<'s> Run<'s> {
         })
     }
 
-    /// Runs `compiled.prelude` when the data changed since its outputs were
-    /// kept (or another kernel's prelude produced them); returns whether it ran.
-    fn run_prelude(&mut self, compiled: &Compiled, params: &[f64]) -> Result<bool, Error> {
-        let Some((func, kernel)) = &compiled.prelude else { return Ok(false) };
-        if self.cache_for == Some(kernel as *const Kernel) {
-            return Ok(false);
+    /// Runs `compiled.prelude` unless its outputs for the bound data are
+    /// kept; returns the index of those outputs in `caches` and whether
+    /// they were just computed.
+    fn run_prelude(&mut self, compiled: &Compiled, params: &[f64]) -> Result<Option<(usize, bool)>, Error> {
+        let Some((func, kernel)) = &compiled.prelude else { return Ok(None) };
+        if let Some(k) = self.caches.iter().position(|c| std::ptr::eq(c.0, kernel)) {
+            return Ok(Some((k, false)));
         }
         let (inputs, stale) = (&self.inputs, &self.prelude_stale);
         self.prelude.call(kernel, func, params, &|i| Self::data(inputs, &[], func, i), &|i| stale[i])?;
         self.prelude_stale.iter_mut().for_each(|s| *s = false);
-        self.cache.clear();
+        let mut cache = Vec::with_capacity(func.outputs.len());
         for oi in 0..func.outputs.len() {
             let v = self.prelude.output(kernel, func, oi);
             if !value_finite(&v) {
@@ -469,10 +476,11 @@ impl<'s> Run<'s> {
                     "the values the scene computes from its data alone are not finite (NaN or infinity); check the data".into(),
                 ));
             }
-            self.cache.push(as_complex(v));
+            cache.push(as_complex(v));
         }
-        self.cache_for = Some(kernel as *const Kernel);
-        Ok(true)
+        self.caches.push((kernel as *const Kernel, cache));
+        self.prelude_runs += 1;
+        Ok(Some((self.caches.len() - 1, true)))
     }
 
     fn execute(&mut self, compiled: &Compiled) -> Result<Outputs, Error> {
@@ -487,9 +495,11 @@ impl<'s> Run<'s> {
             }
             params.push(v * p.scale);
         }
-        let recomputed = self.run_prelude(compiled, &params)?;
+        let prelude = self.run_prelude(compiled, &params)?;
+        let recomputed = prelude.is_some_and(|p| p.1);
         let n_bound = self.inputs.len();
-        let (inputs, cache, stale) = (&self.inputs, &self.cache, &self.stale);
+        let cache: &[Vec<C64>] = prelude.map_or(&[], |p| &self.caches[p.0].1);
+        let (inputs, stale) = (&self.inputs, &self.stale);
         let stale = |i: usize| if i < n_bound { stale[i] } else { recomputed };
         self.main.call(kernel, func, &params, &|i| Self::data(inputs, cache, func, i), &stale)?;
         self.stale.iter_mut().for_each(|s| *s = false);

@@ -98,11 +98,14 @@ fn compile_with(func: &Function, disasm: bool) -> Result<(Kernel, Option<String>
     let storage = func.precision.storage();
     let wide = crate::passes::precision::wide_values(func);
     for (i, input) in func.inputs.iter().enumerate() {
+        // Inputs mixed precision keeps in f64 (values a prelude computed) arrive in f64.
+        let kept_wide = func.insts.iter().enumerate().any(|(v, inst)| wide[v] && inst.op == Op::Input(i as u32));
+        let precision = if kept_wide && input.role == InputRole::Cached { Precision::F64 } else { storage };
         layout.buffers.push(BufferInfo {
             kind: BufferKind::Input(i),
             len: func.len_of(input.ty.shape),
             complex: input.ty.elem == Elem::Complex,
-            precision: storage,
+            precision,
         });
     }
     for (k, t) in func.tables.iter().enumerate() {

@@ -4,12 +4,13 @@
 //! instruction. It runs the reference interpreter, so it is a pass the
 //! driver and codegen call, never something printing does.
 
-use crate::ir::{BandOp, Elem, Function, Op, Precision, UnOp};
+use crate::ir::{BandOp, BandPurpose, Elem, Function, InputRole, Op, Precision, Shape, UnOp};
 use crate::kernels::interp;
 
 /// Per instruction, whether [`Precision::Mixed`] computes it in f64 (a
-/// phase, the periodic function of one, or a value out of f32's
-/// comfortable range at the defaults); all false in the other
+/// phase, the periodic function of one, a value out of f32's
+/// comfortable range at the defaults, relative binning's per-bin
+/// arithmetic, or a scalar computed from a sum); all false in the other
 /// precisions.
 pub fn wide_values(func: &Function) -> Vec<bool> {
     let mut wide = vec![false; func.insts.len()];
@@ -25,6 +26,24 @@ pub fn wide_values(func: &Function) -> Vec<bool> {
         for (i, inst) in func.insts.iter().enumerate() {
             wide[i] = out_of_range[i] || inst.op.operands().iter().any(|a| out_of_range[a.index()]);
         }
+    }
+    // Relative binning's per-bin arithmetic: a few hundred values whose
+    // terms are of order (h|h), where f32 would move ln L by 1e-3 at SNR 100.
+    // So are values the prelude computed from the data (relative binning's
+    // summary data, the data term (d|d)): kept in f64 as computed.
+    for (i, inst) in func.insts.iter().enumerate() {
+        let cached = matches!(inst.op, Op::Input(k) if func.inputs[k as usize].role == InputRole::Cached);
+        wide[i] |= cached || func.bands.iter().any(|b| b.purpose == BandPurpose::RelativeBinning && inst.ty.shape == Shape::Grid(b.coarse));
+    }
+    // Scalar arithmetic on sums (the likelihood's terms added up): a sum
+    // is accumulated in f64, and rounding a value of 1e4 to f32 would move
+    // ln L by 1e-3. Scalar work costs nothing.
+    let mut after_sum = vec![false; func.insts.len()];
+    for (i, inst) in func.insts.iter().enumerate() {
+        let scalar = inst.ty.shape == Shape::Scalar && inst.ty.elem != Elem::Bool;
+        let from_sum = scalar && inst.op.operands().iter().any(|a| after_sum[a.index()]);
+        after_sum[i] = matches!(inst.op, Op::Reduce(..)) || from_sum;
+        wide[i] |= from_sum;
     }
     // Operands precede their users, so one backward sweep closes the set.
     for i in (0..func.insts.len()).rev() {

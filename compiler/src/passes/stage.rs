@@ -74,6 +74,11 @@ pub fn split(func: &Function) -> Option<Staged> {
         return None;
     }
     let mut prelude = func.clone();
+    // Run once per bound input, the prelude costs nothing per call: it
+    // runs in f64 whatever the scene's precision, so data without a
+    // default (whose magnitude f32 rescaling cannot know) and products
+    // of strains (1e-46) are exact. Its outputs are O(1) sums.
+    prelude.precision = Precision::F64;
     prelude.grads.clear();
     prelude.input_grads.clear();
     prelude.outputs = cached
