@@ -12,28 +12,12 @@ use gwml::{Model, Value};
 use gwml_lab::tradeoff::mismatch;
 use num_complex::Complex64 as C64;
 
-/// A TaylorF2 likelihood from `f_low` over 1/8 Hz bins to 1024 Hz, no ISCO
-/// cut, at (mc, q, chi1, chi2).
+#[path = "common/taylorf2_scene.rs"]
+mod taylorf2_scene;
+
+/// The likelihood at (mc, q, chi), its data the template there.
 fn source(f_low: f64, mc: f64, q: f64, chi: f64) -> String {
-    format!(
-        "use std::taylorf2::{{tf2_strain_uncut}}
-use std::detector::{{inner}}
-use std::psd::{{psd_aligo_zerodet_highpower}}
-scene w {{
-    grid f = frequencies(from: {f_low} Hz, to: 1024 Hz, step: 0.125 Hz)
-    input d: complex[f] s = tf2_strain_uncut(f, {mc} Msun, {q}, {chi}, {chi}, 400 Mpc, 0 s, 0.0)
-    param mc: Msun = {mc} in 0.5..200.0
-    param q = {q} in 0.01..1.0
-    param tc: s = 0.0 in -0.1..0.1
-    param phic = 0.0
-    let psd = psd_aligo_zerodet_highpower(f)
-    let h = tf2_strain_uncut(f, mc, q, {chi}, -{chi}, 400 Mpc, tc, phic)
-    output loss = 0.5 * inner(d - h, d - h, psd, spacing(f))
-    output strain = h
-    output psd_out = psd
-    grad loss wrt [mc, q, tc, phic]
-}}"
-    )
+    taylorf2_scene::taylorf2_likelihood(f_low, (mc, q, chi), true)
 }
 
 fn options(precision: Precision, multiband: Multiband) -> Options {

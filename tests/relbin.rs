@@ -14,29 +14,12 @@ use gwml_runtime::noise::{colored_noise, rng};
 use num_complex::Complex64 as C64;
 use rand::Rng;
 
-/// A TaylorF2 likelihood from `f_low` over 1/8 Hz bins to 1024 Hz (no ISCO
-/// cut) with aligned spins (chi, −chi); params default to the fiducial
-/// (mc, q), the data input is bound by the tests.
-fn source(f_low: f64, (mc, q, chi): (f64, f64, f64)) -> String {
-    format!(
-        "use std::taylorf2::{{tf2_strain_uncut}}
-use std::detector::{{inner}}
-use std::psd::{{psd_aligo_zerodet_highpower}}
-scene w {{
-    grid f = frequencies(from: {f_low} Hz, to: 1024 Hz, step: 0.125 Hz)
-    input d: complex[f] s
-    param mc: Msun = {mc} in 0.5..200.0
-    param q = {q} in 0.01..1.0
-    param tc: s = 0.0 in -0.1..0.1
-    param phic = 0.0
-    let psd = psd_aligo_zerodet_highpower(f)
-    let h = tf2_strain_uncut(f, mc, q, {chi}, -{chi}, 400 Mpc, tc, phic)
-    output loss = 0.5 * inner(d - h, d - h, psd, spacing(f))
-    output strain = h
-    output psd_out = psd
-    grad loss wrt [mc, q, tc, phic]
-}}"
-    )
+#[path = "common/taylorf2_scene.rs"]
+mod taylorf2_scene;
+
+/// The likelihood with params defaulting to the fiducial; the tests bind the data.
+fn source(f_low: f64, fiducial: (f64, f64, f64)) -> String {
+    taylorf2_scene::taylorf2_likelihood(f_low, fiducial, false)
 }
 
 /// One of the extremes: the source, its fiducial and the relative widths
