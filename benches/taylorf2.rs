@@ -17,7 +17,11 @@
 //! The suffix `_banded` times the `_full` scenes multibanded
 //! (`multiband: 1e-3`): the waveform's phase on a coarse subset of the
 //! bins, `e^{iΨ}` by rotation between them; their errors against `_full`
-//! (mismatch, loss, gradient) are printed as `gwml_banded_*` lines.
+//! (mismatch, loss, gradient) are printed as `gwml_banded_*` lines. The
+//! suffix `_relbin` times the full-band likelihood by relative binning
+//! (`w1_fit_relbin`, 100 bins, fiducial at the true system; its strain is
+//! `w1_strain_full`'s): `gwml_relbin_*` lines give its loss and gradient
+//! errors against `_full` and |Δ ln L|.
 //!
 //! The data `d` is the model at slightly different params, computed with the
 //! strain scene first and bound as an input. The PSD is the toy curve of
@@ -49,8 +53,14 @@ fn main() {
     println!("taylorf2 W1: 3.5PN, m1 = 36, m2 = 29 Msun, {BINS} bins (20..1024 Hz, df = 1/8 Hz), f64, one thread, median of {reps}");
     println!("gwml_reps {reps}");
     let mut results = Vec::new();
-    for (suffix, what) in [("", "cut at the ISCO"), ("_full", "no cut, every bin"), ("_banded", "no cut, multibanded (1e-3 rad)")] {
-        results.push(measure(reps, suffix, what));
+    let variants = [
+        ("", "w1_strain", "cut at the ISCO"),
+        ("_full", "w1_strain_full", "no cut, every bin"),
+        ("_banded", "w1_strain_banded", "no cut, multibanded (1e-3 rad)"),
+        ("_relbin", "w1_strain_full", "no cut, likelihood by relative binning (100 bins)"),
+    ];
+    for (suffix, strain, what) in variants {
+        results.push(measure(reps, suffix, strain, what));
     }
     // The banded approximation against the exact full band.
     let (full, banded) = (&results[1], &results[2]);
@@ -67,6 +77,12 @@ fn main() {
     println!("gwml_banded_mismatch {mismatch:e}");
     println!("gwml_banded_loss_error {loss_error:e}");
     println!("gwml_banded_grad_error {grad_error:e}");
+    let relbin = &results[3];
+    let delta = (relbin.loss - full.loss).abs();
+    let grad_error = relbin.grads.iter().zip(&full.grads).map(|(b, f)| ((b - f) / f).abs()).fold(0.0, f64::max);
+    println!("relative binning vs full: |delta ln L| {delta:.2e}, largest gradient rel. error {grad_error:.2e}");
+    println!("gwml_relbin_dlogl {delta:e}");
+    println!("gwml_relbin_grad_error {grad_error:e}");
 }
 
 /// What one variant computed at the evaluation point.
@@ -76,12 +92,12 @@ struct Measured {
     grads: Vec<f64>,
 }
 
-/// Compiles scenes `w1_strain{suffix}` and `w1_fit{suffix}`, times them and
+/// Compiles scenes `strain` and `w1_fit{suffix}`, times them and
 /// prints the results, the machine-readable lines with `suffix`.
-fn measure(reps: usize, suffix: &str, what: &str) -> Measured {
+fn measure(reps: usize, suffix: &str, strain: &str, what: &str) -> Measured {
     let t0 = Instant::now();
     let model = Model::from_source("taylorf2_w1.gw", SOURCE).unwrap_or_else(|e| panic!("{e}"));
-    let strain = model.scene(Some(&format!("w1_strain{suffix}"))).unwrap_or_else(|e| panic!("{e}"));
+    let strain = model.scene(Some(strain)).unwrap_or_else(|e| panic!("{e}"));
     let fit = model.scene(Some(&format!("w1_fit{suffix}"))).unwrap_or_else(|e| panic!("{e}"));
     let compile_ms = t0.elapsed().as_secs_f64() * 1e3;
 

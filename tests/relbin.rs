@@ -207,7 +207,7 @@ fn the_setting_parses_and_bad_values_point_at_it() {
     let scene = model.scene(None).unwrap();
     assert_eq!(scene.ir().relative_binning, RelativeBinning::Bins(60));
     let text = scene.pipeline.pruned.to_string();
-    assert!(text.contains("bands 0: 61 of the 8033 points") && text.contains("relative binning, phase bound"), "{text}");
+    assert!(text.contains("bands 0: 61 of the 8033 points of f (relative binning"), "{text}");
     let bad = source(20.0, (10.0, 0.5, 0.0)).replace("scene w {", "scene w {\n    relative_binning: 0.5");
     let Err(err) = Model::from_source("w.gw", &bad) else { panic!("a fraction of a bin is refused") };
     let err = err.to_string();

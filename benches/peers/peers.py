@@ -21,6 +21,16 @@ Three variants of the strain, each measured in all three codes:
                   subset of the bins, e^{i Psi} by rotation between them; its
                   mismatch and loss/gradient errors against gwml's exact full
                   band are printed); LAL and ripple exact, as in "full".
+  relative binning
+                  the full-band likelihood by relative binning over 100 bins:
+                  gwml scene `w1_fit_relbin` (`relative_binning: 100`, fiducial
+                  at the true system) beside jimgw's
+                  HeterodynedTransientLikelihoodFD with n_bins = 100 on the same
+                  W1 data (benches/peers/jimgw_heterodyne.py: ripplegw's
+                  TaylorF2 projected on H1 from its zenith, face-on, which
+                  reproduces W1's loss; fiducial the true system), and the
+                  exact ripple likelihood. Each code's |Delta ln L| against its
+                  own full likelihood at the evaluation point is printed.
 
 Measured (median of --reps calls after warm-up, wall clock):
   forward         gwml: complex strain out (benches/taylorf2.rs)
@@ -55,9 +65,10 @@ medians and reported separately; so is gwml's scene compilation.
 Setup (a venv OUTSIDE the repository; nothing is created inside it):
 
     python3 -m venv /work/venv-peers
-    /work/venv-peers/bin/pip install lalsuite ripplegw "jax[cpu]" numpy
+    /work/venv-peers/bin/pip install lalsuite ripplegw "jax[cpu]" numpy jimgw==0.5.2
 
-(measured with lalsuite 7.26.16, ripplegw 0.4.1, jax/jaxlib 0.10.2, numpy 2.4.6)
+(measured with lalsuite 7.26.16, ripplegw 0.4.1, jax/jaxlib 0.10.2, numpy 2.4.6,
+jimgw 0.5.2 (0.6 needs Python >= 3.12); without jimgw its rows are skipped)
 
 Run (from the repository root):
 
@@ -245,17 +256,37 @@ def main():
         for k in ("forward", "loss_forward", "value_and_grad"):
             print(f"peers_ripple_{k}{suffix}_us {rp[k + '_us']:.3f}")
             print(f"peers_ripple_{k}{suffix}_compile_ms {rp[k + '_compile_ms']:.3f}")
+    # Relative binning: gwml and jimgw at 100 bins, ripple's exact likelihood.
+    if "gwml_value_and_grad_relbin_us" in gw:
+        try:
+            sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+            import jimgw_heterodyne
+
+            jim = jimgw_heterodyne.run(args.reps, [100])
+        except ImportError as e:
+            print(f"jimgw not importable ({e}): its relative-binning rows are skipped")
+            jim = {}
+        rp = time_ripple(args.reps, cut=False)
+        print(f"relative binning, 100 bins: gwml |dlnL| {gw.get('gwml_relbin_dlogl', float('nan')):.2e}, "
+              f"gradient rel. error {gw.get('gwml_relbin_grad_error', float('nan')):.2e}; "
+              f"jimgw {jim.get('version', '-')} |dlnL| {jim.get('peers_jimgw_het100_dlogl', float('nan')):.2e}, "
+              f"gradient rel. error (2-norm) {jim.get('peers_jimgw_het100_grad_rel_err', float('nan')):.2e}")
+        for kind, g_key, j_key in (("likelihood", "loss_forward", "loglike"), ("value_and_grad", "value_and_grad", "value_and_grad")):
+            g = gw[f"gwml_{g_key}_relbin_us"]
+            rows.append((f"{kind}, relbin 100 (jimgw)", g, jim.get(f"peers_jimgw_het100_{j_key}_us"), rp[f"{g_key}_us"]))
+            print(f"peers_ripple_{g_key}_relbin_us {rp[g_key + '_us']:.3f}")
     if "gwml_banded_mismatch" in gw:
         print(f"multiband 1e-3 against gwml's exact full band: mismatch {gw['gwml_banded_mismatch']:.2e}, "
               f"loss rel. error {gw['gwml_banded_loss_error']:.2e}, gradient rel. error {gw['gwml_banded_grad_error']:.2e}")
     print()
-    hdr = f"| {'measurement':<30} | {'gwml µs':>9} | {'LAL µs':>9} | {'ripple µs':>9} | {'LAL/gwml':>8} | {'ripple/gwml':>11} |"
+    # For the relative-binning rows the middle peer is jimgw's heterodyned likelihood.
+    hdr = f"| {'measurement':<34} | {'gwml µs':>9} | {'LAL/jim µs':>10} | {'ripple µs':>9} | {'peer/gwml':>9} | {'ripple/gwml':>11} |"
     print(hdr)
     print("|" + "|".join("-" * (len(c)) for c in hdr.split("|")[1:-1]) + "|")
     for name, g, lal_us, rp_us in rows:
-        lal_cell = f"{lal_us:>9.1f}" if lal_us else f"{'-':>9}"
-        lal_ratio = f"{lal_us / g:>8.2f}" if lal_us else f"{'-':>8}"
-        print(f"| {name:<30} | {g:>9.1f} | {lal_cell} | {rp_us:>9.1f} | {lal_ratio} | {rp_us / g:>11.2f} |")
+        lal_cell = f"{lal_us:>10.1f}" if lal_us else f"{'-':>10}"
+        lal_ratio = f"{lal_us / g:>9.2f}" if lal_us else f"{'-':>9}"
+        print(f"| {name:<34} | {g:>9.1f} | {lal_cell} | {rp_us:>9.1f} | {lal_ratio} | {rp_us / g:>11.2f} |")
 
 
 if __name__ == "__main__":

@@ -113,13 +113,15 @@ impl Function {
                 head.chain(["…".to_string()]).chain(b.nodes[b.nodes.len() - 3..].iter().map(|&i| format!("{:?}", coord(i)))).collect()
             };
             let what = match b.purpose {
-                BandPurpose::Multiband => format!("phase error {:.1e} rad at the defaults", b.error),
-                BandPurpose::RelativeBinning => format!("relative binning, phase bound {:.2} rad per bin", b.error),
+                BandPurpose::Multiband => format!("widest band {widest} points, phase error {:.1e} rad at the defaults", b.error),
+                BandPurpose::RelativeBinning => {
+                    format!("relative binning, widest bin {widest} points, phase bound {:.2} rad per bin", b.error)
+                }
                 BandPurpose::Midpoints => "the bins' midpoints".to_string(),
             };
             let _ = writeln!(
                 s,
-                "  bands {k}: {} of the {} points of {} (widest band {widest} points, {what}) [{}]: {}",
+                "  bands {k}: {} of the {} points of {} ({what}) [{}]: {}",
                 b.nodes.len(),
                 fine.len,
                 fine.name,
