@@ -2,6 +2,7 @@
 
 use crate::{BindArgs, CompileArgs, Emit, FitArgs, Format, KnobArgs, OptimizerArg, RunArgs};
 use gwml::compiler::front::syntax::print_ast;
+use gwml::compiler::ir::BandPurpose;
 use gwml::compiler::Options;
 use gwml::{Error, Model, Value};
 use serde_json::{json, Map};
@@ -107,6 +108,24 @@ pub fn compile(a: CompileArgs) -> Result<(), String> {
                 scratch(g),
                 plural(scratch(g))
             );
+        }
+        for b in &scene.pipeline.pruned.bands {
+            let grid = &scene.pipeline.pruned.grid(b.fine).name;
+            match b.purpose {
+                BandPurpose::Multiband => {
+                    println!("multiband: {} nodes of grid {grid}, phase error {:.1e} rad at the defaults", b.nodes.len(), b.error)
+                }
+                BandPurpose::RelativeBinning => println!(
+                    "relative binning: {} bins of grid {grid}, phase bound {:.2} rad per bin, waveform at {} points per call",
+                    b.nodes.len() - 1,
+                    b.error,
+                    2 * b.nodes.len() - 1
+                ),
+                BandPurpose::Midpoints => {}
+            }
+        }
+        if let Some(p) = &scene.pipeline.kernel.prelude {
+            println!("prelude: {} value{} computed from the data alone, once per bound input", p.outputs.len(), plural(p.outputs.len()));
         }
         let mut times = vec![("parse+check".to_string(), t_check)];
         times.extend(s.times.iter().map(|(n, t)| (n.to_string(), *t)));

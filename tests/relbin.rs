@@ -223,3 +223,35 @@ fn other_sums_are_left_exact() {
     let scene = compiled(&model, Precision::F64, Some(100));
     assert!(scene.pipeline.pruned.bands.is_empty(), "|d − h| is not quadratic in h");
 }
+
+/// The fiducial is a set of inputs, `fiducial.NAME`, at the params'
+/// defaults unless bound: a caller sets it from a search. Binding it
+/// recomputes the summary data (not per call), and at the fiducial the
+/// binned likelihood is exact.
+#[test]
+fn the_fiducial_is_bound_like_data() {
+    let case = &CASES[0];
+    let model = Model::from_source("w.gw", &source(case.f_low, case.fiducial)).unwrap();
+    let d = data(&model, case, 5);
+    let exact = compiled(&model, Precision::F64, None);
+    let binned = compiled(&model, Precision::F64, Some(30));
+    let names: Vec<&str> = binned.ir().inputs.iter().map(|i| i.name.as_str()).collect();
+    assert!(names.contains(&"fiducial.mc") && names.contains(&"fiducial.phic"), "{names:?}");
+    let p: Point = [28.13, 0.78, 4e-4, 0.5];
+    let truth = loss(&exact, &d, p);
+    let mut run = bind(&binned, &d, p);
+    let away = (run.forward().unwrap().scalar("loss").unwrap() - truth).abs();
+    for (name, v) in ["mc", "q", "tc", "phic"].iter().zip(p) {
+        run.input_real(&format!("fiducial.{name}"), &[v]).unwrap();
+    }
+    let at = (run.forward().unwrap().scalar("loss").unwrap() - truth).abs();
+    assert_eq!(run.prelude_runs(), 2, "once for the data, once for the new fiducial");
+    run.param("mc", 28.131).unwrap();
+    run.forward().unwrap();
+    assert_eq!(run.prelude_runs(), 2, "not per call");
+    assert!(at < 1e-9 && away > 100.0 * at, "at the fiducial {at:e}, from the default fiducial {away:e}");
+    // A fiducial whose waveform vanishes is an error naming it, not a NaN.
+    run.input_real("fiducial.mc", &[0.0]).unwrap_or_else(|e| panic!("{e}"));
+    let err = run.forward().unwrap_err().to_string();
+    assert!(err.contains("fiducial"), "{err}");
+}

@@ -473,7 +473,9 @@ impl<'s> Run<'s> {
             let v = self.prelude.output(kernel, func, oi);
             if !value_finite(&v) {
                 return Err(Error::Bind(
-                    "the values the scene computes from its data alone are not finite (NaN or infinity); check the data".into(),
+                    "the values the scene computes from its data alone are not finite (NaN or infinity); check the data \
+                     (and, with relative binning, that the waveform at the `fiducial.*` inputs is nonzero on the whole grid)"
+                        .into(),
                 ));
             }
             cache.push(as_complex(v));

@@ -4,22 +4,27 @@
 //! frequency of a grid, an expression at most quadratic in one waveform
 //! `h` and its conjugate, with coefficients the params do not change (the
 //! data, the PSD): `(d − h | d − h) = 4 df Σ |d − h|² / S`. With the
-//! fiducial waveform `h0` (`h` at the params' defaults) and the ratio
-//! `r = h / h0` taken linear between the nodes of a few bins,
+//! fiducial waveform `h0` (`h` at the fiducial params: scalar inputs
+//! `fiducial.NAME`, one per param, defaulting to the param's default, so
+//! a caller sets the fiducial from a search by binding them), the ratio
+//! `r = h / h0` is taken quadratic on each bin, through its first node
+//! (`t = 0`), its midpoint (`t_m`) and its last node (`t = 1`), with the
+//! Lagrange basis `L_u(t)`, so that
 //!
 //! ```text
-//! Σ_k a_k h_k = Σ_j A0_j r_j + A1_j r_{j+1},
-//!     A0_j = Σ_{k in bin j} a_k h0_k (1 − t_k),  A1_j = Σ a_k h0_k t_k,
+//! Σ_k a_k h_k = Σ_j Σ_u S_uj r_uj,        S_uj = Σ_{k in bin j} a_k h0_k L_u(t_k),
+//! Σ_k q_k |h_k|² = Σ_j Σ_{u≤v} Q_uvj (2 −δ_uv) Re(r_uj conj r_vj),
+//!                                         Q_uvj = Σ_{k in bin j} q_k |h0_k|² L_u(t_k) L_v(t_k),
 //! ```
 //!
-//! and likewise for `conj(h)` and `|h|²` (weights `(1 − t)²`, `t²` and
-//! `t (1 − t)`, the last on `2 Re(r_j conj r_{j+1})`), where `t_k` is the
-//! position of point `k` in its bin. The sums `A0 … QX` are the *summary
-//! data*: they depend on the data and the fiducial, not on the params,
-//! so the per-call work is the waveform at the `BINS + 1` nodes and
-//! `O(BINS)` arithmetic (the summary data are an input-only value the
-//! runtime computes once per bound input). The rewrite runs before the
-//! adjoint, so `grad` is the exact gradient of the approximation.
+//! and likewise for `conj(h)`, where `t_k` is the position of point `k` in
+//! its bin. `S` and `Q` are the *summary data*: they depend on the data
+//! and the fiducial, not on the params, so the per-call work is the
+//! waveform at the `2 BINS + 1` nodes and midpoints and `O(BINS)`
+//! arithmetic (the summary data and `1/h0` at the nodes are computed from
+//! inputs alone: the runtime computes them once per bound data or
+//! fiducial, `passes::stage`). The rewrite runs before the adjoint, so
+//! `grad` is the exact gradient of the approximation.
 //!
 //! The nodes are equally spaced in the bound on how far any post-Newtonian
 //! phase can drift from the fiducial's,
@@ -33,8 +38,8 @@
 //! on param-free conditions, every param-dependent leaf is one complex
 //! array `h` on the sum's grid that multibanding could clone onto the
 //! nodes (elementwise in the grid's coordinates and scalars), of degree
-//! at most one in `h` and in `conj(h)`, and `h0` is finite and nonzero at
-//! every point. Anything else is left exact.
+//! at most one in `h` and in `conj(h)`, and `h0` at the params' defaults
+//! is finite and nonzero at every point. Anything else is left exact.
 
 use super::multiband::{clone_onto, Cone};
 use super::precision::defaults;
@@ -77,6 +82,20 @@ pub fn relbin(func: &Function) -> Function {
 
     let mut header = func.clone();
     header.insts.clear();
+    // The fiducial: one scalar input `fiducial.NAME` per param, at the
+    // param's default unless bound.
+    let first_fiducial = header.inputs.len();
+    for p in &func.params {
+        header.inputs.push(InputInfo {
+            name: format!("fiducial.{}", p.name),
+            ty: Ty { elem: Elem::Real, shape: Shape::Scalar },
+            scale: p.scale,
+            unit: p.unit.clone(),
+            default: p.default.map(|d| vec![C64::new(d * p.scale, 0.0)]),
+            role: InputRole::Data,
+        });
+    }
+    let varies = param_dependent(func);
     let mut b = Builder::new(header, true);
     let mut banding_of: HashMap<GridId, u32> = HashMap::new();
     for (_, c) in &found {
@@ -96,12 +115,23 @@ pub fn relbin(func: &Function) -> Function {
     let rewrite: HashMap<usize, &Candidate> = found.iter().map(|(i, c)| (*i, c)).collect();
     let mut map: Vec<Value> = Vec::with_capacity(func.insts.len());
     let mut coarse: HashMap<(usize, u32), Value> = HashMap::new();
+    let mut fiducial: HashMap<(usize, Option<u32>), Value> = HashMap::new();
     for (i, inst) in func.insts.iter().enumerate() {
         let v = match rewrite.get(&i) {
             Some(c) => {
                 let n = banding_of[&c.grid];
-                let mut e = Emitter { func, b: &mut b, map: &map, coarse: &mut coarse, n, grid: c.grid };
-                let total = e.summary_sum(c, &values[c.h.index()]);
+                let mut e = Emitter {
+                    func,
+                    b: &mut b,
+                    map: &map,
+                    coarse: &mut coarse,
+                    varies: &varies,
+                    fiducial: &mut fiducial,
+                    first_fiducial,
+                    n,
+                    grid: c.grid,
+                };
+                let total = e.summary_sum(c);
                 if inst.ty.elem == Elem::Real {
                     b.unary(UnOp::Re, total)
                 } else {
@@ -133,12 +163,18 @@ struct Candidate {
     poly: Poly,
 }
 
-/// Every sum of `func` that can be rewritten, by instruction index.
-fn candidates(func: &Function) -> Vec<(usize, Candidate)> {
+/// Per instruction, whether its value depends on a param.
+fn param_dependent(func: &Function) -> Vec<bool> {
     let mut varies = vec![false; func.insts.len()];
     for (i, inst) in func.insts.iter().enumerate() {
         varies[i] = matches!(inst.op, Op::Param(_)) || inst.op.operands().iter().any(|a| varies[a.index()]);
     }
+    varies
+}
+
+/// Every sum of `func` that can be rewritten, by instruction index.
+fn candidates(func: &Function) -> Vec<(usize, Candidate)> {
+    let varies = param_dependent(func);
     let mut cone = Cone::new(func);
     let mut found = Vec::new();
     for (i, inst) in func.insts.iter().enumerate() {
@@ -332,6 +368,12 @@ struct Emitter<'a, 'b> {
     b: &'b mut Builder,
     map: &'b [Value],
     coarse: &'b mut HashMap<(usize, u32), Value>,
+    /// Per source instruction, whether it depends on a param.
+    varies: &'b [bool],
+    /// Values recomputed at the fiducial, by source value and banding.
+    fiducial: &'b mut HashMap<(usize, Option<u32>), Value>,
+    /// The input `fiducial.NAME` of param 0 (the others follow).
+    first_fiducial: usize,
     /// The banding.
     n: u32,
     /// The fine grid.
@@ -343,16 +385,40 @@ impl Emitter<'_, '_> {
         Ty { elem: Elem::Complex, shape: Shape::Grid(self.grid) }
     }
 
-    /// A real table on `grid`, as a complex array if `complex`.
+    /// A real table on `grid`.
     fn table(&mut self, grid: GridId, data: Vec<f64>) -> Value {
         self.b.func.tables.push(Table { grid, data });
         self.b.emit(Op::Table(self.b.func.tables.len() as u32 - 1))
     }
 
-    fn complex_table(&mut self, grid: GridId, data: &[C64]) -> Value {
-        let re = self.table(grid, data.iter().map(|z| z.re).collect());
-        let im = self.table(grid, data.iter().map(|z| z.im).collect());
-        self.b.binary(BinOp::Complex, re, im)
+    /// Source value `x` at the fiducial params (the `fiducial.NAME`
+    /// inputs): on its own grid, or on the nodes of banding `onto`.
+    fn at_fiducial(&mut self, x: Value, onto: Option<(u32, &Banding)>) -> Value {
+        let scalar = self.func.ty(x).shape == Shape::Scalar;
+        if !self.varies[x.index()] {
+            return match onto {
+                Some(band) if !scalar => clone_onto(self.func, self.b, self.map, self.coarse, x, band),
+                _ => self.map[x.index()],
+            };
+        }
+        let key = (x.index(), if scalar { None } else { onto.map(|o| o.0) });
+        if let Some(&v) = self.fiducial.get(&key) {
+            return v;
+        }
+        let v = match self.func.insts[x.index()].op {
+            Op::Param(p) => self.b.emit(Op::Input((self.first_fiducial + p as usize) as u32)),
+            Op::Broadcast(s, g) => {
+                let s = self.at_fiducial(s, None);
+                self.b.emit(Op::Broadcast(s, onto.map_or(g, |o| o.1.coarse)))
+            }
+            op => {
+                let operands: Vec<(Value, Value)> = op.operands().into_iter().map(|a| (a, self.at_fiducial(a, onto))).collect();
+                let mapped = op.map_operands(|a| operands.iter().find(|(o, _)| *o == a).expect("an operand").1);
+                self.b.emit(mapped)
+            }
+        };
+        self.fiducial.insert(key, v);
+        v
     }
 
     /// `c` on the fine grid, complex.
@@ -414,14 +480,15 @@ impl Emitter<'_, '_> {
     }
 
     /// The rewritten sum (complex).
-    fn summary_sum(&mut self, c: &Candidate, h0: &[C64]) -> Value {
+    fn summary_sum(&mut self, c: &Candidate) -> Value {
         let band = self.b.func.bands[self.n as usize].clone();
         let mids = self.b.func.bands[self.n as usize + 1].clone();
         let (fine, nodes) = (self.grid, band.coarse);
+        let len = self.b.func.grid(fine).len;
         // The quadratic Lagrange basis on each bin (nodes at t = 0, the
         // midpoint's t_m and 1), at every fine point.
-        let mut basis = [vec![0.0; h0.len()], vec![0.0; h0.len()], vec![0.0; h0.len()]];
-        basis[0][h0.len() - 1] = 1.0;
+        let mut basis = [vec![0.0; len], vec![0.0; len], vec![0.0; len]];
+        basis[0][len - 1] = 1.0;
         for (j, w) in band.nodes.windows(2).enumerate() {
             let (a, b, m) = (w[0] as usize, w[1] as usize, mids.nodes[j] as usize);
             for k in a..b {
@@ -431,13 +498,14 @@ impl Emitter<'_, '_> {
                 }
             }
         }
-        let h0_fine = self.complex_table(fine, h0);
+        let h0_fine = self.at_fiducial(c.h, None);
         let h0_conj = self.b.unary(UnOp::Conj, h0_fine);
         // The waveform's ratio to the fiducial at each bin's first node,
         // its midpoint and its last node (the next bin's first).
         let ratio = |e: &mut Self, n: u32, at: &Banding| {
-            let inverse: Vec<C64> = at.nodes.iter().map(|&k| 1.0 / h0[k as usize]).collect();
-            let inverse = e.complex_table(nodes, &inverse);
+            let h0 = e.at_fiducial(c.h, Some((n, at)));
+            let one = e.b.constant(C64::new(1.0, 0.0), Ty { elem: Elem::Complex, shape: Shape::Grid(nodes) });
+            let inverse = e.b.binary(BinOp::Div, one, h0);
             let h = clone_onto(e.func, e.b, e.map, e.coarse, c.h, (n, at));
             e.b.mul(h, inverse)
         };

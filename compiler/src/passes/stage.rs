@@ -8,7 +8,8 @@
 //! that depends on data inputs (role [`InputRole::Data`]) and on nothing
 //! that changes per call — params, weights, dropout masks, noise draws —
 //! and that is worth keeping: its computation holds a reduction, a
-//! transform or a band or tensor op, and a per-call value uses it. Those
+//! transform, a band or tensor op or a transcendental function (relative
+//! binning's fiducial waveform), and a per-call value uses it. Those
 //! values are the prelude's outputs (`cache.0`, `cache.1`, …). The *main*
 //! function reads each of them as an input of role [`InputRole::Cached`]
 //! in place of its computation. The runtime runs the prelude when a data
@@ -52,7 +53,19 @@ pub fn split(func: &Function) -> Option<Staged> {
                 per_call[i] = any(&per_call);
             }
         }
-        let work = matches!(inst.op, Op::Reduce(..) | Op::Dft(..) | Op::Tensor(..) | Op::Band(..));
+        let work = matches!(
+            inst.op,
+            Op::Reduce(..)
+                | Op::Dft(..)
+                | Op::Tensor(..)
+                | Op::Band(..)
+                | Op::PowConst(..)
+                | Op::Binary(BinOp::Pow | BinOp::Atan2, ..)
+                | Op::Unary(
+                    UnOp::Sqrt | UnOp::Cbrt | UnOp::Exp | UnOp::Log | UnOp::Sin | UnOp::Cos | UnOp::Tan | UnOp::Tanh | UnOp::Cis,
+                    _
+                )
+        );
         costly[i] = data[i] && !per_call[i] && (work || any(&costly));
     }
     // Cached: costly values a per-call value or a root uses.
@@ -67,7 +80,8 @@ pub fn split(func: &Function) -> Option<Staged> {
             }
         }
     }
-    let cached: Vec<usize> = (0..n).filter(|&i| costly[i] && used_per_call[i]).collect();
+    // Truth values are recomputed from what they compare (buffers hold numbers).
+    let cached: Vec<usize> = (0..n).filter(|&i| costly[i] && used_per_call[i] && func.insts[i].ty.elem != Elem::Bool).collect();
     // A scene whose results all come from the data alone (whitening a
     // stretch of strain) gets new data on every call: nothing to keep.
     if cached.is_empty() || !func.roots().iter().any(|r| per_call[r.index()]) {
