@@ -1,7 +1,7 @@
 //! The driver: the stage order, and nothing else.
 //!
 //! parse (+ imports) → resolve modules → check + lower each scene →
-//! prune → relbin → multiband → adjoint → simplify → stage → specialise → rescale → (codegen, in
+//! prune → relbin → cutsum → multiband → adjoint → simplify → stage → specialise → rescale → (codegen, in
 //! [`crate::codegen`]). Every composition of passes is here
 //! ([`GRADIENT_PASSES`], [`FORWARD_PASSES`]); after each pass the IR is
 //! verified in debug builds, or when asked ([`Options::verify`],
@@ -309,9 +309,10 @@ type Pass = (&'static str, fn(&Function) -> Function);
 
 /// The passes from the checked IR to what codegen compiles, in order.
 /// Then [`finish`] stages the result and runs [`LATE_PASSES`] on each part.
-const GRADIENT_PASSES: [Pass; 5] = [
+const GRADIENT_PASSES: [Pass; 6] = [
     ("prune", passes::prune),
     ("relbin", passes::relbin),
+    ("cutsum", passes::cutsum),
     ("multiband", passes::multiband),
     ("adjoint", passes::adjoint),
     ("simplify", passes::simplify),
@@ -384,9 +385,10 @@ fn run_pass((name, pass): Pass, input: &Function, verify: bool, times: &mut Pass
 /// keeping the IR after pruning, after the adjoint and at the end.
 pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, PipelineError> {
     let mut times = PassTimes::default();
-    let [prune, relbin, multiband, adjoint, simplify] = GRADIENT_PASSES;
+    let [prune, relbin, cutsum, multiband, adjoint, simplify] = GRADIENT_PASSES;
     let pruned = run_pass(prune, &checked, verify, &mut times)?;
     let pruned = run_pass(relbin, &pruned, verify, &mut times)?;
+    let pruned = run_pass(cutsum, &pruned, verify, &mut times)?;
     let pruned = run_pass(multiband, &pruned, verify, &mut times)?;
     let adjoint = run_pass(adjoint, &pruned, verify, &mut times)?;
     let simplified = run_pass(simplify, &adjoint, verify, &mut times)?;

@@ -2,10 +2,13 @@
 //! driver verifies the IR after each pass and can dump it.
 //!
 //! - [`prune`]: keep only what the requested outputs and gradients need (DCE).
-//! - [`multiband`]: with the scene's `multiband` setting, `cis` of a phase
-//!   over a grid computed on a coarse subset of the grid's points.
 //! - [`relbin`]: with the scene's `relative_binning` setting, likelihood
 //!   sums from summary data of a fiducial waveform over a few bins.
+//! - [`cutsum`]: a sum over a waveform cut at a param-dependent frequency
+//!   (the ISCO) split into the part the cut masks and the data's own
+//!   term, which staging computes once per bound input.
+//! - [`multiband`]: with the scene's `multiband` setting, `cis` of a phase
+//!   over a grid computed on a coarse subset of the grid's points.
 //! - [`adjoint`]: symbolic reverse-mode differentiation with activity analysis.
 //! - [`simplify`]: rebuild through the folding builder (CSE, constant
 //!   folding, algebraic identities), then prune.
@@ -18,6 +21,7 @@
 //!   of 1e-23 and their squares stay inside f32's range.
 
 mod adjoint;
+mod cutsum;
 pub mod multiband;
 pub mod precision;
 mod prune;
@@ -27,6 +31,7 @@ mod specialise;
 pub mod stage;
 
 pub use adjoint::adjoint;
+pub use cutsum::cutsum;
 pub use multiband::multiband;
 pub use prune::prune;
 pub use relbin::relbin;

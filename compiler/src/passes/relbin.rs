@@ -164,7 +164,7 @@ struct Candidate {
 }
 
 /// Per instruction, whether its value depends on a param.
-fn param_dependent(func: &Function) -> Vec<bool> {
+pub(super) fn param_dependent(func: &Function) -> Vec<bool> {
     let mut varies = vec![false; func.insts.len()];
     for (i, inst) in func.insts.iter().enumerate() {
         varies[i] = matches!(inst.op, Op::Param(_)) || inst.op.operands().iter().any(|a| varies[a.index()]);
