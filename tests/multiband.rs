@@ -142,3 +142,16 @@ fn the_setting_parses_and_bad_values_point_at_it() {
     let err = err.to_string();
     assert!(err.contains("unknown multiband tolerance `3`") && err.contains("radians"), "{err}");
 }
+
+/// A waveform cut at the ISCO is computed below the cut only (the loop
+/// split): a band call over the whole grid would undo that, so its phase
+/// is left exact.
+#[test]
+fn a_waveform_cut_at_the_isco_is_left_to_the_loop_split() {
+    let model = Model::from_file("examples/taylorf2_tradeoff.gw").unwrap();
+    let scene = model.scene_with(None, options(Precision::F64, Multiband::Tolerance(1e-3))).unwrap();
+    assert!(scene.pipeline.pruned.bands.is_empty(), "{}", scene.pipeline.pruned);
+    // The uncut waveform is still banded.
+    let full = Model::from_file("examples/taylorf2_tradeoff_full.gw").unwrap();
+    assert!(!full.scene_with(None, options(Precision::F64, Multiband::Tolerance(1e-3))).unwrap().pipeline.pruned.bands.is_empty());
+}

@@ -104,12 +104,7 @@ impl Builder {
 
     /// The scalar constant behind `v`, looking through broadcasts.
     pub fn const_of(&self, v: Value) -> Option<C64> {
-        match self.func.insts[v.index()].op {
-            Op::Const(b) => Some(C64::new(f64::from_bits(b), 0.0)),
-            Op::ConstComplex(r, i) => Some(C64::new(f64::from_bits(r), f64::from_bits(i))),
-            Op::Broadcast(a, _) => self.const_of(a),
-            _ => None,
-        }
+        self.func.const_of(v)
     }
 
     /// The truth of a comparison of two constants (looking through

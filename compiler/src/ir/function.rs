@@ -309,6 +309,21 @@ impl Function {
         Some((grid, below == coord_left && increasing || below != coord_left && !increasing))
     }
 
+    /// The scalar constant behind `v`, looking through broadcasts.
+    pub fn const_of(&self, v: Value) -> Option<num_complex::Complex64> {
+        match self.insts[v.index()].op {
+            Op::Const(b) => Some(num_complex::Complex64::new(f64::from_bits(b), 0.0)),
+            Op::ConstComplex(r, i) => Some(num_complex::Complex64::new(f64::from_bits(r), f64::from_bits(i))),
+            Op::Broadcast(a, _) => self.const_of(a),
+            _ => None,
+        }
+    }
+
+    /// Whether `v` is the constant zero (looking through broadcasts).
+    pub fn is_zero(&self, v: Value) -> bool {
+        self.const_of(v).is_some_and(|z| z.re == 0.0 && z.im == 0.0)
+    }
+
     /// The number of elements a value of shape `s` holds.
     pub fn len_of(&self, s: Shape) -> usize {
         match s {

@@ -22,7 +22,6 @@ use super::prune;
 use super::relbin::param_dependent;
 use crate::ir::builder::Builder;
 use crate::ir::*;
-use num_complex::Complex64 as C64;
 use std::collections::HashMap;
 
 /// Splits every such sum of `func` (see the module doc).
@@ -108,7 +107,7 @@ fn varies_beyond(func: &Function, x: Value, c: Value) -> bool {
 /// the cut already.
 fn split(func: &Function, b: &mut Builder, map: &[Value], x: Value, c: Value) -> Option<Value> {
     let beyond = resolve(func, b, map, x, c, &mut HashMap::new());
-    if b.const_of(beyond) == Some(C64::new(0.0, 0.0)) {
+    if b.func.is_zero(beyond) {
         return None;
     }
     let diff = b.binary(BinOp::Sub, map[x.index()], beyond);
@@ -131,7 +130,7 @@ fn resolve(func: &Function, b: &mut Builder, map: &[Value], v: Value, c: Value, 
             let operands: Vec<(Value, Value)> = op.operands().into_iter().map(|o| (o, resolve(func, b, map, o, c, memo))).collect();
             // The masked waveform is zero here: so are its negation,
             // parts, broadcasts and products, whatever the other factor.
-            let is_zero = |b: &Builder, v: Value| b.const_of(v).is_some_and(|z| z.re == 0.0 && z.im == 0.0);
+            let is_zero = |b: &Builder, v: Value| b.func.is_zero(v);
             let zero_preserving = matches!(
                 op,
                 Op::Binary(BinOp::Mul, ..)

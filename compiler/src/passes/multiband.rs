@@ -15,7 +15,9 @@
 //! `h²/8 · max|φ''|` bound). Bands never exceed [`MAX_BAND`] points. A
 //! phase that is not finite everywhere at the defaults, or that depends on
 //! an input array, or that the grid alone fixes (folded into a table by
-//! `specialise` anyway), is left exact.
+//! `specialise` anyway), or whose `cis` only multiplies an amplitude cut
+//! at an interval condition (the ISCO: code generation already computes it
+//! below the cut only), is left exact.
 //!
 //! Vinciguerra, Veitch & Mandel 2017 (arXiv:1703.02062) choose TaylorF2's
 //! bands from the time to merger; García-Quirós et al. 2020
@@ -43,13 +45,14 @@ pub fn multiband(func: &Function) -> Function {
     for (i, inst) in func.insts.iter().enumerate() {
         varies[i] = matches!(inst.op, Op::Param(_) | Op::Input(_)) || inst.op.operands().iter().any(|a| varies[a.index()]);
     }
+    let cut = masked_products(func);
     let candidates: Vec<(usize, Value, GridId)> = func
         .insts
         .iter()
         .enumerate()
         .filter_map(|(i, inst)| match inst.op {
             Op::Unary(UnOp::Cis, x) => match func.ty(x).shape {
-                Shape::Grid(g) if varies[x.index()] && cone.clonable(x, g) => Some((i, x, g)),
+                Shape::Grid(g) if varies[x.index()] && !cut[i] && cone.clonable(x, g) => Some((i, x, g)),
                 _ => None,
             },
             _ => None,
@@ -110,6 +113,42 @@ pub fn multiband(func: &Function) -> Function {
     let mut out = b.func;
     out.remap_roots(|v| map[v.index()]);
     prune(&out)
+}
+
+/// Per instruction, whether the value is only used under a mask on an
+/// interval condition (`select(f <= f_isco, ·, 0)`, a waveform cut at the
+/// ISCO): through products and sign changes into such a select, or
+/// multiplied by a value masked so. Code generation computes it only
+/// where the mask holds, which a band call over the whole grid would undo.
+fn masked_products(func: &Function) -> Vec<bool> {
+    let masks = |c: Value, a: Value, b: Value| func.interval_condition(c).is_some() && (func.is_zero(a) || func.is_zero(b));
+    let masked = |mut v: Value| loop {
+        match func.insts[v.index()].op {
+            Op::Unary(UnOp::ToComplex | UnOp::Neg | UnOp::Conj, a) => v = a,
+            Op::Select(c, a, b) => return masks(c, a, b),
+            _ => return false,
+        }
+    };
+    let mut users: Vec<Vec<usize>> = vec![Vec::new(); func.insts.len()];
+    for (u, inst) in func.insts.iter().enumerate() {
+        for a in inst.op.operands() {
+            users[a.index()].push(u);
+        }
+    }
+    let roots: std::collections::HashSet<usize> = func.roots().iter().map(|r| r.index()).collect();
+    let mut under = vec![false; func.insts.len()];
+    for i in (0..func.insts.len()).rev() {
+        let v = Value(i as u32);
+        under[i] = !users[i].is_empty()
+            && !roots.contains(&i)
+            && users[i].iter().all(|&u| match func.insts[u].op {
+                Op::Select(c, a, b) => a != b && (a == v || b == v) && masks(c, a, b),
+                Op::Binary(BinOp::Mul, x, y) => under[u] || (x == v && masked(y)) || (y == v && masked(x)),
+                Op::Unary(UnOp::ToComplex | UnOp::Neg | UnOp::Conj, _) => under[u],
+                _ => false,
+            });
+    }
+    under
 }
 
 /// Which grid arrays can be recomputed on a coarse subset of their grid:
