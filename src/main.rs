@@ -167,6 +167,7 @@ pub struct CompileArgs {
 pub struct BindArgs {
     /// Set a param (for `fit`, the starting value of a free param): `--set mc=30`
     /// in its declared unit, or with a unit converted to it: `--set "tc=2 ms"`.
+    /// With relative binning, `--set "fiducial.mc=28.1 Msun"` sets the fiducial.
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// Bind an input to a 1-D .npy file (float64/32 or complex128/64): `--input d=data.npy`; or a real input

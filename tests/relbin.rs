@@ -255,3 +255,22 @@ fn the_fiducial_is_bound_like_data() {
     let err = run.forward().unwrap_err().to_string();
     assert!(err.contains("fiducial"), "{err}");
 }
+
+/// `fiducial.NAME` takes a value with a unit like its param (`--set`).
+#[test]
+fn the_fiducial_is_set_with_units_like_its_param() {
+    let case = &CASES[0];
+    let model = Model::from_source("w.gw", &source(case.f_low, case.fiducial)).unwrap();
+    let d = data(&model, case, 5);
+    let binned = compiled(&model, Precision::F64, Some(30));
+    let p: Point = [28.13, 0.78, 4e-4, 0.5];
+    let mut a = bind(&binned, &d, p);
+    a.input_real("fiducial.mc", &[28.13]).unwrap().input_real("fiducial.tc", &[4e-4]).unwrap();
+    let mut b = bind(&binned, &d, p);
+    b.param_quantity("fiducial.mc", "28.13 Msun").unwrap().param_quantity("fiducial.tc", "0.4 ms").unwrap();
+    let (la, lb) = (a.forward().unwrap().scalar("loss").unwrap(), b.forward().unwrap().scalar("loss").unwrap());
+    assert!((la - lb).abs() <= 1e-12 * la.abs(), "{la} vs {lb}");
+    let Err(err) = b.param_quantity("fiducial.tc", "3 Msun") else { panic!("a mass is not a time") };
+    let err = err.to_string();
+    assert!(err.contains("dimension"), "{err}");
+}

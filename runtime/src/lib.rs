@@ -362,25 +362,36 @@ impl<'s> Run<'s> {
     /// Sets param `name` from text such as `2 ms` or `30 Msun`: a value
     /// with a unit is converted to the param's declared unit (a unit of
     /// another dimension is an error); a bare number is in the declared unit.
+    /// `fiducial.NAME`, the fiducial of a relative-binning scene, is set
+    /// the same way, in param `NAME`'s unit.
     pub fn param_quantity(&mut self, name: &str, text: &str) -> Result<&mut Self, Error> {
+        if let Some(param) = name.strip_prefix("fiducial.") {
+            if self.func().inputs.iter().any(|i| i.name == name) {
+                let value = self.quantity_in_unit_of(param, text)?;
+                return self.input_real(name, &[value]);
+            }
+        }
+        let value = self.quantity_in_unit_of(name, text)?;
+        self.param(name, value)
+    }
+
+    /// `text` (a number with an optional unit) in the declared unit of param `name`.
+    fn quantity_in_unit_of(&self, name: &str, text: &str) -> Result<f64, Error> {
         let f = self.func();
         let p = f.params.iter().find(|p| p.name == name).ok_or_else(|| unknown("param", name, f.params.iter().map(|p| p.name.as_str())))?;
         let (x, unit) = gwml_compiler::front::units::parse_quantity(text).map_err(|e| Error::Bind(format!("param `{name}`: {e}")))?;
-        let value = match unit {
-            None => x,
-            Some(u) if u.dim.to_string() == p.dim => x * u.scale / p.scale,
-            Some(u) => {
-                return Err(Error::Bind(format!(
-                    "param `{name}` is in {} (dimension {}), but `{}` is in {} (dimension {})",
-                    p.unit,
-                    p.dim,
-                    text.trim(),
-                    u.name,
-                    u.dim
-                )))
-            }
-        };
-        self.param(name, value)
+        match unit {
+            None => Ok(x),
+            Some(u) if u.dim.to_string() == p.dim => Ok(x * u.scale / p.scale),
+            Some(u) => Err(Error::Bind(format!(
+                "param `{name}` is in {} (dimension {}), but `{}` is in {} (dimension {})",
+                p.unit,
+                p.dim,
+                text.trim(),
+                u.name,
+                u.dim
+            ))),
+        }
     }
 
     /// Binds a real input (in its declared unit).
