@@ -52,45 +52,14 @@ benches/peers/peers.py imports `run` for its relative-binning rows.
 """
 
 import argparse
-import os
 import time
 
-os.environ["OMP_NUM_THREADS"] = "1"
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ["MKL_NUM_THREADS"] = "1"
-os.environ["XLA_FLAGS"] = (
-    os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-).strip()
-os.environ["JAX_PLATFORMS"] = "cpu"
+# The environment (one thread, before jax is imported), the W1 constants
+# and the timing helpers are peers.py's.
+from peers import DF, DIST_MPC, F_MAX, F_MIN, M1, M2, MC_TRUE, POINT, Q_TRUE, median_us, pin_cpu
 
-M1, M2 = 36.0, 29.0
-DIST_MPC = 400.0
-F_MIN, F_MAX, DF = 20.0, 1024.0, 0.125
 DURATION, SAMPLING = 1.0 / DF, 2.0 * F_MAX
-MC_TRUE = (M1 * M2) ** 0.6 / (M1 + M2) ** 0.2
-Q_TRUE = M2 / M1
-POINT = (28.1, 0.8, 0.0005, 0.1)  # Mc, q, t_c, phase_c (as peers.py)
 TRIGGER_TIME = 1_000_000_000.0
-
-
-def pin_cpu(cpu):
-    try:
-        os.sched_setaffinity(0, {cpu})
-        return f"cpu {cpu} (os.sched_setaffinity)"
-    except (AttributeError, OSError) as e:
-        return f"not pinned ({e})"
-
-
-def median_us(fn, reps, warm):
-    for _ in range(warm):
-        fn()
-    ts = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        fn()
-        ts.append((time.perf_counter() - t0) * 1e6)
-    ts.sort()
-    return ts[len(ts) // 2]
 
 
 def main():

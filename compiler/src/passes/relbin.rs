@@ -147,12 +147,6 @@ pub fn relbin(func: &Function) -> Function {
     prune(&out)
 }
 
-/// Whether the scene has a sum relative binning would rewrite (for
-/// `gwml tradeoff`'s default sweep).
-pub fn applies(func: &Function) -> bool {
-    !candidates(func).is_empty()
-}
-
 /// A sum of the form the module doc describes.
 struct Candidate {
     /// The waveform.
@@ -520,12 +514,15 @@ impl Emitter<'_, '_> {
         let at = [r, r_mid, r_next];
 
         let mut terms: Vec<Value> = Vec::new();
+        let mut weights: Vec<Value> = Vec::new();
         for (k, h0_factor, conj) in [(1, h0_fine, false), (2, h0_conj, true)] {
             let Some(coef) = &c.poly.terms[k] else { continue };
             let coef = self.coef(coef);
             let a = self.b.mul(coef, h0_factor);
-            for (l, r) in basis.iter().zip(at) {
-                let w = self.table(fine, l.clone());
+            if weights.is_empty() {
+                weights = basis.iter().map(|l| self.table(fine, l.clone())).collect();
+            }
+            for (&w, r) in weights.iter().zip(at) {
                 let s = self.summary(a, w);
                 let x = if conj { self.b.unary(UnOp::Conj, r) } else { r };
                 terms.push(self.b.mul(s, x));
