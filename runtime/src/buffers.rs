@@ -62,15 +62,27 @@ impl Buffer {
     }
 }
 
+/// Which kernel something was made for: its address, compared and never
+/// dereferenced (a plain number, so a `Run` can move between threads; the
+/// scene a run borrows keeps its kernels in place).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct KernelKey(usize);
+
+impl KernelKey {
+    pub(crate) fn of(kernel: &Kernel) -> KernelKey {
+        KernelKey(kernel as *const Kernel as usize)
+    }
+}
+
 /// The buffers of one kernel and its scalar slots, kept between calls.
 #[derive(Default)]
 pub(crate) struct Buffers {
     pub(crate) scratch: Vec<(bool, Buffer)>,
     /// Which kernel's layout `scratch` was allocated for.
-    allocated_for: Option<*const Kernel>,
+    allocated_for: Option<KernelKey>,
     /// Which kernel's tables and inputs the buffers hold (but inputs the
     /// caller says are stale), or `None`: buffers are refilled only then.
-    filled_for: Option<*const Kernel>,
+    filled_for: Option<KernelKey>,
     scalars: Vec<f64>,
 }
 
@@ -88,11 +100,11 @@ impl Buffers {
     ) -> Result<(), Error> {
         let layout = &kernel.layout;
         let floats = |b: &gwml_compiler::codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
-        let refill_all = self.filled_for != Some(kernel as *const Kernel);
-        if self.allocated_for != Some(kernel as *const Kernel) {
+        let refill_all = self.filled_for != Some(KernelKey::of(kernel));
+        if self.allocated_for != Some(KernelKey::of(kernel)) {
             self.scratch =
                 layout.buffers.iter().map(|b| Ok((b.complex, Buffer::new(b.precision, floats(b))?))).collect::<Result<_, Error>>()?;
-            self.allocated_for = Some(kernel as *const Kernel);
+            self.allocated_for = Some(KernelKey::of(kernel));
         }
         for ((_, buf), info) in self.scratch.iter_mut().zip(&layout.buffers) {
             match info.kind {
@@ -104,7 +116,7 @@ impl Buffers {
                 _ => {}
             }
         }
-        self.filled_for = Some(kernel as *const Kernel);
+        self.filled_for = Some(KernelKey::of(kernel));
         self.scalars.clear();
         self.scalars.resize(layout.scalar_slots, 0.0);
         let ptrs: Vec<*mut u8> = self.scratch.iter_mut().map(|(_, b)| b.ptr()).collect();

@@ -22,7 +22,7 @@ pub mod optim;
 pub mod spectrum;
 pub mod train;
 
-use buffers::Buffers;
+use buffers::{Buffers, KernelKey};
 use gwml_compiler::codegen::{self, Kernel};
 use gwml_compiler::front::diagnostics::did_you_mean;
 use gwml_compiler::ir::{Elem, Function, Shape};
@@ -317,7 +317,7 @@ pub struct Run<'s> {
     prelude: Buffers,
     /// Per prelude kernel (forward, gradient) run since data were last
     /// bound: its outputs, the main kernel's cached inputs in order.
-    caches: Vec<(*const Kernel, Vec<Vec<C64>>)>,
+    caches: Vec<(KernelKey, Vec<Vec<C64>>)>,
     prelude_runs: usize,
 }
 
@@ -345,6 +345,15 @@ impl<'s> Run<'s> {
             }
         }
         Ok(bound)
+    }
+
+    /// Puts every param back at its default (a param without one is unset
+    /// again), as [`Scene::bind`] starts; bound data stay.
+    pub fn reset_params(&mut self) -> &mut Self {
+        for (v, p) in self.params.iter_mut().zip(&self.scene.ir().params) {
+            *v = p.default;
+        }
+        self
     }
 
     /// Sets param `name` (in its declared unit).
@@ -404,6 +413,24 @@ impl<'s> Run<'s> {
         self.bind_input(name, data.len(), true, |k| data[k])
     }
 
+    /// Puts input `name` back at its default data (unbound again if it has none).
+    pub fn reset_input(&mut self, name: &str) -> Result<&mut Self, Error> {
+        let f = self.func();
+        let i =
+            f.inputs.iter().position(|p| p.name == name).ok_or_else(|| unknown("input", name, f.inputs.iter().map(|p| p.name.as_str())))?;
+        self.inputs[i].clone_from(&f.inputs[i].default);
+        self.mark_bound(i);
+        Ok(self)
+    }
+
+    /// Input `i` changed: the main kernel and the prelude refill it, and
+    /// values computed from the data are stale.
+    fn mark_bound(&mut self, i: usize) {
+        self.stale[i] = true;
+        self.prelude_stale[i] = true;
+        self.caches.clear();
+    }
+
     /// Validates and stores the `len` values `value(k)`, reusing the
     /// input's previous storage (a run binds new data per example).
     fn bind_input(&mut self, name: &str, len: usize, complex: bool, value: impl Fn(usize) -> C64) -> Result<&mut Self, Error> {
@@ -431,9 +458,7 @@ impl<'s> Run<'s> {
         let stored = self.inputs[i].get_or_insert_with(Vec::new);
         stored.clear();
         stored.extend((0..len).map(|k| value(k) * info.scale));
-        self.stale[i] = true;
-        self.prelude_stale[i] = true;
-        self.caches.clear();
+        self.mark_bound(i);
         Ok(self)
     }
 
@@ -473,7 +498,7 @@ impl<'s> Run<'s> {
     /// they were just computed.
     fn run_prelude(&mut self, compiled: &Compiled, params: &[f64]) -> Result<Option<(usize, bool)>, Error> {
         let Some((func, kernel)) = &compiled.prelude else { return Ok(None) };
-        if let Some(k) = self.caches.iter().position(|c| std::ptr::eq(c.0, kernel)) {
+        if let Some(k) = self.caches.iter().position(|c| c.0 == KernelKey::of(kernel)) {
             return Ok(Some((k, false)));
         }
         let (inputs, stale) = (&self.inputs, &self.prelude_stale);
@@ -491,7 +516,7 @@ impl<'s> Run<'s> {
             }
             cache.push(as_complex(v));
         }
-        self.caches.push((kernel as *const Kernel, cache));
+        self.caches.push((KernelKey::of(kernel), cache));
         self.prelude_runs += 1;
         Ok(Some((self.caches.len() - 1, true)))
     }
@@ -594,8 +619,12 @@ fn all_finite<T>(xs: &[T], f: impl Fn(&T) -> f64) -> bool {
     acc.iter().sum::<f64>() + tail == 0.0
 }
 
-/// Scenes are shared between threads (batches run one `Run` per thread).
+/// Scenes are shared between threads (batches run one `Run` per thread),
+/// and a run can move to another thread (the Python package runs it with
+/// the interpreter's lock released).
 const _: () = {
     const fn shareable<T: Send + Sync>() {}
+    const fn movable<T: Send>() {}
     shareable::<Scene>();
+    movable::<Run<'static>>();
 };
