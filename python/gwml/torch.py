@@ -14,7 +14,7 @@ A stack of points (leading axes) is one ``Scene.batch`` over all cores.
 
 from __future__ import annotations
 
-from typing import Callable, Mapping, Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 import torch
@@ -42,19 +42,13 @@ class _SceneOutput(torch.autograd.Function):
         return grad_output.unsqueeze(-1) * g, None
 
 
-def function(
-    scene: Scene,
-    output: str,
-    params: Optional[Sequence[str]] = None,
-    *,
-    inputs: Optional[Mapping[str, object]] = None,
-) -> Callable[[torch.Tensor], torch.Tensor]:
+def function(scene: Scene, output: str, params: Optional[Sequence[str]] = None) -> Callable[[torch.Tensor], torch.Tensor]:
     """``output`` of ``scene`` as a differentiable PyTorch function of a
     tensor whose last axis holds ``params`` (default: every param
     ``output`` has a gradient with respect to, in the scene's order).
-    Params not named keep their defaults; ``inputs`` are bound at every
-    call. Double backward (second derivatives) is not supported."""
-    ev = Evaluator(scene, output, params, inputs)
+    Params not named keep their defaults; data comes from ``scene.bind``.
+    Double backward (second derivatives) is not supported."""
+    ev = Evaluator(scene, output, params)
 
     def call(x: torch.Tensor) -> torch.Tensor:
         if not torch.is_tensor(x):

@@ -5,7 +5,7 @@
 use crate::data::{shape_of, shaped, DataRef};
 use crate::errors::{bind_error, run_error};
 use crate::scene::Scene;
-use gwml_runtime::batch::{Batch, Mode};
+use gwml_runtime::batch::Mode;
 use gwml_runtime::{Outputs, Value};
 use num_complex::Complex64 as C64;
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
@@ -54,26 +54,12 @@ pub(crate) fn run<'py>(
         }
     }
     let names: Vec<&str> = varied.iter().map(|(n, _)| n.as_str()).collect();
+    let fixed: Vec<(&str, f64)> = fixed.iter().map(|(n, x)| (n.as_str(), *x)).collect();
     let given = scene.inputs_given(inputs)?;
-    let held = scene.held();
-    let func = scene.runtime().ir();
-    let mut batch = Batch::new(&names, &values).mode(if grad { Mode::ValueAndGrad } else { Mode::Forward }).threads(threads);
-    for (name, x) in &fixed {
-        batch = batch.set(name, *x);
-    }
-    let views = given
-        .iter()
-        .map(|(i, g)| (*i, g.view()))
-        .chain(held.iter().filter(|(i, _)| !given.iter().any(|g| g.0 == *i)).map(|(i, h)| (*i, h.view())));
-    for (i, data) in views {
-        let name = func.inputs[i].name.as_str();
-        batch = match data {
-            DataRef::Real(d) => batch.input_real(name, d),
-            DataRef::Complex(d) => batch.input_complex(name, d),
-        };
-    }
-    let runtime = scene.runtime();
-    let outs = py.detach(|| runtime.batch(&batch)).map_err(|e| run_error(py, e))?;
+    let views: Vec<(usize, DataRef<'_>)> = given.iter().map(|(i, g)| (*i, g.view())).collect();
+    let mode = if grad { Mode::ValueAndGrad } else { Mode::Forward };
+    let shared = scene.shared();
+    let outs = py.detach(|| shared.run_rows(&names, &values, &fixed, &views, mode, threads)).map_err(|e| run_error(py, e))?;
     let outputs = stack_outputs(py, scene, &outs, n)?;
     if !grad {
         return Ok(outputs.into_any());
@@ -84,7 +70,7 @@ pub(crate) fn run<'py>(
 
 /// `{output: array}` with items along the first axis.
 fn stack_outputs<'py>(py: Python<'py>, scene: &Scene, outs: &[Outputs], n: usize) -> PyResult<Bound<'py, PyDict>> {
-    let func = scene.runtime().ir();
+    let func = scene.shared().scene.ir();
     let dict = PyDict::new(py);
     for (k, o) in func.outputs.iter().enumerate() {
         let mut dims = vec![n];

@@ -7,6 +7,7 @@ mod batch;
 mod data;
 mod errors;
 mod scene;
+mod xla;
 
 use errors::{compile_error, CompileError, GwmlError, RunError};
 use gwml_compiler::ir::{MathMode, Multiband, Precision, RelativeBinning};
@@ -126,6 +127,8 @@ fn _gwml(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<ParamInfo>()?;
     m.add_class::<InputInfo>()?;
     m.add_class::<OutputInfo>()?;
+    m.add_class::<xla::XlaFunction>()?;
+    m.add_function(wrap_pyfunction!(xla::xla_handler, m)?)?;
     m.add("GwmlError", py.get_type::<GwmlError>())?;
     m.add("CompileError", py.get_type::<CompileError>())?;
     m.add("RunError", py.get_type::<RunError>())?;

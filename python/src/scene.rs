@@ -7,7 +7,7 @@ use crate::data::{self, shape_of, value_to_py, Data, DataRef, Given};
 use crate::errors::{bind_error, run_error};
 use gwml_compiler::front::diagnostics::did_you_mean;
 use gwml_compiler::ir::{Elem, Function, InputRole};
-use gwml_runtime::batch::Mode;
+use gwml_runtime::batch::{Batch, Mode};
 use gwml_runtime::{Error, Outputs, Run, Value};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
@@ -47,8 +47,65 @@ enum ParamArg {
 /// threads are safe (they take turns; `batch` runs items on all cores).
 #[pyclass(frozen, module = "gwml")]
 pub(crate) struct Scene {
-    scene: Arc<gwml_runtime::Scene>,
+    shared: Arc<Shared>,
+}
+
+/// A compiled scene and its run: what `gwml.Scene` and the functions the
+/// JAX bridge registers with XLA (`xla.rs`) share.
+pub(crate) struct Shared {
+    pub(crate) scene: Arc<gwml_runtime::Scene>,
     state: Mutex<State>,
+}
+
+impl Shared {
+    /// The run, taken in turn by callers on any thread. Only taken with the
+    /// interpreter's lock released (or on a thread that never holds it), so
+    /// a thread waiting here never blocks one that needs the interpreter.
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Runs the params `names` at every row of `values` (row-major, one
+    /// value per name), with `fixed` params, inputs `given` and otherwise
+    /// the held inputs. One row runs on the kept run (its buffers and
+    /// prelude values stay); more rows are one batch over `threads`.
+    pub(crate) fn run_rows(
+        &self,
+        names: &[&str],
+        values: &[f64],
+        fixed: &[(&str, f64)],
+        given: &[(usize, DataRef<'_>)],
+        mode: Mode,
+        threads: Option<usize>,
+    ) -> Result<Vec<Outputs>, Error> {
+        if !names.is_empty() && names.len() == values.len() {
+            let params: Vec<(String, ParamArg)> = names
+                .iter()
+                .zip(values)
+                .chain(fixed.iter().map(|(n, v)| (n, v)))
+                .map(|(n, v)| (n.to_string(), ParamArg::Number(*v)))
+                .collect();
+            return Ok(vec![self.lock().execute(&params, given, mode)?]);
+        }
+        let held: Vec<(usize, Arc<Data>)> = {
+            let state = self.lock();
+            state.held.iter().enumerate().filter_map(|(i, h)| h.clone().map(|h| (i, h))).collect()
+        };
+        let inputs = &self.scene.ir().inputs;
+        let mut batch = Batch::new(names, values).mode(mode).threads(threads);
+        for (name, x) in fixed {
+            batch = batch.set(name, *x);
+        }
+        let held_not_given = held.iter().filter(|(i, _)| !given.iter().any(|g| g.0 == *i)).map(|(i, h)| (*i, h.view()));
+        for (i, data) in given.iter().copied().chain(held_not_given) {
+            let name = inputs[i].name.as_str();
+            batch = match data {
+                DataRef::Real(d) => batch.input_real(name, d),
+                DataRef::Complex(d) => batch.input_complex(name, d),
+            };
+        }
+        self.scene.batch(&batch)
+    }
 }
 
 /// A param of a scene: `name`, `unit` (declared), `default` and `bounds`
@@ -156,11 +213,12 @@ impl Scene {
         let scene = Arc::new(scene);
         let n = scene.ir().inputs.len();
         let run = SceneRun::new(scene.clone(), |s| s.bind());
-        Scene { scene, state: Mutex::new(State { run, bound: vec![None; n], held: vec![None; n] }) }
+        let state = Mutex::new(State { run, bound: vec![None; n], held: vec![None; n] });
+        Scene { shared: Arc::new(Shared { scene, state }) }
     }
 
     fn func(&self) -> &Function {
-        self.scene.ir()
+        self.shared.scene.ir()
     }
 
     /// Params from a dict of name → number or quantity text.
@@ -210,10 +268,7 @@ impl Scene {
         let params = self.param_args(params)?;
         let given = self.input_args(inputs)?;
         let views: Vec<(usize, DataRef<'_>)> = given.iter().map(|(i, g)| (*i, g.view())).collect();
-        let result = py.detach(|| {
-            let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
-            state.execute(&params, &views, mode)
-        });
+        let result = py.detach(|| self.shared.lock().execute(&params, &views, mode));
         result.map_err(|e| run_error(py, e))
     }
 
@@ -397,7 +452,7 @@ impl Scene {
         }
         // Bound now, so bad data (shape, non-finite values) fail here.
         py.detach(|| -> Result<(), Error> {
-            let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+            let mut state = self.shared.lock();
             let State { run, bound, held } = &mut *state;
             run.with_dependent_mut(|scene, run| {
                 for (i, d) in set {
@@ -467,8 +522,7 @@ impl Scene {
     fn _time_native(&self, py: Python<'_>, params: Option<&Bound<'_, PyDict>>, grad: bool, repeats: usize) -> PyResult<f64> {
         let params = self.param_args(params)?;
         let mode = if grad { Mode::ValueAndGrad } else { Mode::Forward };
-        py.detach(|| self.state.lock().unwrap_or_else(|e| e.into_inner()).time_native(&params, mode, repeats))
-            .map_err(|e| run_error(py, e))
+        py.detach(|| self.shared.lock().time_native(&params, mode, repeats)).map_err(|e| run_error(py, e))
     }
 
     fn __repr__(&self) -> String {
@@ -477,17 +531,11 @@ impl Scene {
 }
 
 impl Scene {
-    pub(crate) fn runtime(&self) -> &gwml_runtime::Scene {
-        &self.scene
+    pub(crate) fn shared(&self) -> &Arc<Shared> {
+        &self.shared
     }
 
     pub(crate) fn inputs_given<'py>(&self, inputs: Option<&Bound<'py, PyDict>>) -> PyResult<Vec<(usize, Given<'py>)>> {
         self.input_args(inputs)
-    }
-
-    /// The data held by [`Scene::bind`] for inputs `given` does not name.
-    pub(crate) fn held(&self) -> Vec<(usize, Arc<Data>)> {
-        let state = self.state.lock().unwrap_or_else(|e| e.into_inner());
-        state.held.iter().enumerate().filter_map(|(i, h)| h.clone().map(|h| (i, h))).collect()
     }
 }

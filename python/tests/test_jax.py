@@ -59,3 +59,27 @@ def test_chain_rule_through_jax_code(scene):
     _, g = scene.value_and_grad({"mc": 20.3, "tc": 0.0003})
     want = 2.0 * (g["loss"]["mc"] + g["loss"]["tc"] / 1000.0)
     assert abs(float(jax.grad(h)(0.3)) - want) <= 1e-12 * abs(want)
+
+
+def test_the_custom_call_reads_the_data_the_scene_holds():
+    model = gwml.compile(EXAMPLES / "chirp_fit.gw")
+    scene = model.scene()
+    f = jax.jit(gwml.jax.function(scene, "loss", ["mc"]))
+    x = jnp.array([29.0])
+    at_default = float(f(x))
+    assert at_default == scene.run({"mc": 29.0})["loss"]
+    d = np.zeros(8033, dtype=np.complex128)
+    scene.bind({"d": d})
+    assert float(f(x)) == scene.run({"mc": 29.0})["loss"] != at_default
+    scene.bind({"d": None})
+    assert float(f(x)) == at_default
+
+
+def test_errors_inside_jit_carry_the_diagnostic(scene):
+    f = jax.jit(gwml.jax.function(scene, "loss", ["mc"]))
+    with pytest.raises(Exception, match="param `mc` = 500 is outside its bounds"):
+        f(jnp.array([500.0])).block_until_ready()
+    # float32 params (without x64) come back as float32.
+    g = gwml.jax.function(scene, "loss", ["mc"])
+    v = g(jnp.array([20.1], dtype=jnp.float32))
+    assert v.dtype == jnp.float32 and abs(float(v) - scene.run({"mc": float(np.float32(20.1))})["loss"]) < 1e-5 * abs(float(v))
