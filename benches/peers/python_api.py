@@ -7,7 +7,7 @@
 `pip install ./python`). Pinned to one core. Measures, as medians:
 - the call overhead of `Scene.value_and_grad` from Python over the same
   call made from Rust (`Scene._time_native`), on W1 full band and with
-  relative binning (100 bins);
+  multibanding (1e-3 rad) and relative binning (100 bins);
 - `jax.jit(jax.grad(f))` through `gwml.jax.function` against calling
   `Scene.value_and_grad` directly;
 - W1 full-band value and gradient from Python against ripplegw's
@@ -45,7 +45,7 @@ def main():
     x = jnp.array(POINT)
     print(f"gwml Python package on W1 at {params}; {pinned}; medians of {reps} calls")
     rows = {}
-    for label, scene_name in (("full band", "w1_fit_full"), ("relbin 100", "w1_fit_relbin")):
+    for label, scene_name in (("full band", "w1_fit_full"), ("multiband", "w1_fit_banded"), ("relbin 100", "w1_fit_relbin")):
         scene = model.scene(scene_name)
         scene.bind({"d": data})
         native = scene._time_native(params, grad=True, repeats=reps)
