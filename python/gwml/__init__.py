@@ -69,11 +69,9 @@ def compile(
         knobs=dict(knobs) if knobs is not None else None,
     )
     if isinstance(path_or_source, os.PathLike):
-        return Model.from_file(os.fspath(path_or_source), **options)
+        return Model(os.fspath(path_or_source), path=True, **options)
     if not isinstance(path_or_source, str):
         raise TypeError(f"gwml.compile takes a path or source text, not {type(path_or_source).__name__}")
     text = path_or_source
     looks_like_path = "\n" not in text and (text.endswith(".gw") or os.path.isfile(text))
-    if looks_like_path:
-        return Model.from_file(text, **options)
-    return Model.from_source(text, **options)
+    return Model(text, path=looks_like_path, **options)

@@ -1,6 +1,5 @@
 """Type stubs of the native module `gwml._gwml` (python/src)."""
 
-from os import PathLike
 from typing import Any, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -76,27 +75,18 @@ class Scene:
     def _time_native(self, params: Optional[Mapping[str, ParamValue]] = None, *, grad: bool = True, repeats: int = 1000) -> float: ...
 
 class Model:
-    @staticmethod
-    def from_file(
-        path: Union[str, PathLike[str]],
-        *,
-        precision: Optional[str] = None,
-        math: Optional[str] = None,
-        multiband: Optional[str] = None,
-        relative_binning: Optional[str] = None,
-        knobs: Optional[Mapping[str, Union[str, float]]] = None,
-    ) -> Model: ...
-    @staticmethod
-    def from_source(
+    def __init__(
+        self,
         source: str,
         *,
-        name: str = "<string>",
+        path: bool = False,
+        name: Optional[str] = None,
         precision: Optional[str] = None,
         math: Optional[str] = None,
         multiband: Optional[str] = None,
         relative_binning: Optional[str] = None,
         knobs: Optional[Mapping[str, Union[str, float]]] = None,
-    ) -> Model: ...
+    ) -> None: ...
     @property
     def scenes(self) -> list[str]: ...
     def scene(self, name: Optional[str] = None) -> Scene: ...

@@ -141,7 +141,7 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
 }
 
 /// `(a, b)` as Python prints a shape.
-pub(crate) fn tuple(dims: &[usize]) -> String {
+fn tuple(dims: &[usize]) -> String {
     match dims {
         [] => "()".into(),
         [n] => format!("({n},)"),

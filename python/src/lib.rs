@@ -32,17 +32,31 @@ where
     text.map(|t| T::from_str(&t).map_err(|e| compile_error(py, gwml_runtime::Error::Scene(format!("{what}: {e}"))))).transpose()
 }
 
+#[pymethods]
 impl Model {
+    /// Checks a `.gw` program: the file at `source` when `path`, else the
+    /// text `source` (`name` is the file name its diagnostics show). The
+    /// options override every scene's settings, as the command line's do.
+    #[new]
+    #[pyo3(signature = (source, *, path=false, name=None, precision=None, math=None, multiband=None, relative_binning=None, knobs=None))]
     #[allow(clippy::too_many_arguments)]
-    fn with_options(
+    fn new(
         py: Python<'_>,
-        model: gwml_runtime::Model,
+        source: &str,
+        path: bool,
+        name: Option<String>,
         precision: Option<String>,
         math: Option<String>,
         multiband: Option<String>,
         relative_binning: Option<String>,
         knobs: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Model> {
+        let model = if path {
+            gwml_runtime::Model::from_file(source)
+        } else {
+            gwml_runtime::Model::from_source(name.as_deref().unwrap_or("<string>"), source)
+        }
+        .map_err(|e| compile_error(py, e))?;
         let mut knob_list = Vec::new();
         for (k, v) in knobs.into_iter().flat_map(|d| d.iter()) {
             let name: String = k.extract()?;
@@ -61,44 +75,6 @@ impl Model {
             ..Options::default()
         };
         Ok(Model { model, options })
-    }
-}
-
-#[pymethods]
-impl Model {
-    /// Checks the `.gw` file at `path`.
-    #[staticmethod]
-    #[pyo3(signature = (path, *, precision=None, math=None, multiband=None, relative_binning=None, knobs=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn from_file(
-        py: Python<'_>,
-        path: std::path::PathBuf,
-        precision: Option<String>,
-        math: Option<String>,
-        multiband: Option<String>,
-        relative_binning: Option<String>,
-        knobs: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<Model> {
-        let model = gwml_runtime::Model::from_file(&path).map_err(|e| compile_error(py, e))?;
-        Model::with_options(py, model, precision, math, multiband, relative_binning, knobs)
-    }
-
-    /// Checks `.gw` source text (`name` is the file name diagnostics show).
-    #[staticmethod]
-    #[pyo3(signature = (source, *, name="<string>".to_string(), precision=None, math=None, multiband=None, relative_binning=None, knobs=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn from_source(
-        py: Python<'_>,
-        source: &str,
-        name: String,
-        precision: Option<String>,
-        math: Option<String>,
-        multiband: Option<String>,
-        relative_binning: Option<String>,
-        knobs: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<Model> {
-        let model = gwml_runtime::Model::from_source(&name, source).map_err(|e| compile_error(py, e))?;
-        Model::with_options(py, model, precision, math, multiband, relative_binning, knobs)
     }
 
     /// The names of the program's scenes, in source order.

@@ -127,7 +127,9 @@ pub(crate) struct InputInfo {
     name: String,
     #[pyo3(get)]
     unit: String,
-    shape: Vec<usize>,
+    /// As NumPy gives it: `()` for a scalar.
+    #[pyo3(get)]
+    shape: Py<PyTuple>,
     #[pyo3(get)]
     dtype: &'static str,
     #[pyo3(get)]
@@ -144,7 +146,9 @@ pub(crate) struct OutputInfo {
     name: String,
     #[pyo3(get)]
     unit: String,
-    shape: Vec<usize>,
+    /// As NumPy gives it: `()` for a scalar.
+    #[pyo3(get)]
+    shape: Py<PyTuple>,
     #[pyo3(get)]
     dtype: &'static str,
     #[pyo3(get)]
@@ -162,18 +166,12 @@ impl ParamInfo {
 
 #[pymethods]
 impl InputInfo {
-    /// The shape, as NumPy gives it: `()` for a scalar.
-    #[getter]
-    fn shape<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
-        PyTuple::new(py, &self.shape)
-    }
-
-    fn __repr__(&self) -> String {
+    fn __repr__(&self, py: Python<'_>) -> String {
         format!(
             "InputInfo(name='{}', unit='{}', shape={}, dtype='{}', has_default={}, role='{}')",
             self.name,
             self.unit,
-            data::tuple(&self.shape),
+            self.shape.bind(py),
             self.dtype,
             if self.has_default { "True" } else { "False" },
             self.role
@@ -183,18 +181,12 @@ impl InputInfo {
 
 #[pymethods]
 impl OutputInfo {
-    /// The shape, as NumPy gives it: `()` for a scalar.
-    #[getter]
-    fn shape<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
-        PyTuple::new(py, &self.shape)
-    }
-
-    fn __repr__(&self) -> String {
+    fn __repr__(&self, py: Python<'_>) -> String {
         format!(
             "OutputInfo(name='{}', unit='{}', shape={}, dtype='{}', grads=[{}])",
             self.name,
             self.unit,
-            data::tuple(&self.shape),
+            self.shape.bind(py),
             self.dtype,
             self.grads.iter().map(|g| format!("'{g}'")).collect::<Vec<_>>().join(", ")
         )
@@ -411,7 +403,7 @@ impl Scene {
             let info = InputInfo {
                 name: i.name.clone(),
                 unit: i.unit.clone(),
-                shape: shape_of(func, i.ty.shape),
+                shape: PyTuple::new(py, shape_of(func, i.ty.shape))?.unbind(),
                 dtype: dtype(i.ty.elem),
                 has_default: i.default.is_some(),
                 role,
@@ -429,8 +421,13 @@ impl Scene {
         for (k, o) in func.outputs.iter().enumerate() {
             let ty = func.ty(o.value);
             let grads = func.grads.iter().filter(|g| g.output == k).map(|g| func.params[g.param].name.clone()).collect();
-            let info =
-                OutputInfo { name: o.name.clone(), unit: o.unit.clone(), shape: shape_of(func, ty.shape), dtype: dtype(ty.elem), grads };
+            let info = OutputInfo {
+                name: o.name.clone(),
+                unit: o.unit.clone(),
+                shape: PyTuple::new(py, shape_of(func, ty.shape))?.unbind(),
+                dtype: dtype(ty.elem),
+                grads,
+            };
             dict.set_item(&o.name, Py::new(py, info)?)?;
         }
         Ok(dict)
