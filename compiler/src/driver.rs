@@ -9,7 +9,7 @@
 
 use crate::check::{collect_modules, Checker, KnobOverride};
 use crate::front::diagnostics::{render_all, Diagnostic};
-use crate::front::source::{FileId, SourceMap};
+use crate::front::source::{FileId, SourceMap, Span};
 use crate::front::stdlib;
 use crate::front::syntax::{self, ast};
 use crate::ir::{Function, Precision};
@@ -437,8 +437,18 @@ fn load_imports(
     loaded: &mut Vec<(String, ast::SourceFileAst)>,
     diags: &mut Vec<Diagnostic>,
 ) {
+    let mut imported: HashMap<&str, Span> = HashMap::new();
     for item in &ast.items {
         let ast::Item::Use(u) = item else { continue };
+        for n in &u.names {
+            if let Some(prev) = imported.insert(n.node.as_str(), n.span) {
+                diags.push(
+                    Diagnostic::error(n.span, format!("`{}` is imported twice", n.node))
+                        .with_secondary(prev, "first imported here")
+                        .with_help("import each name once"),
+                );
+            }
+        }
         let path: Vec<&str> = u.path.iter().map(|p| p.node.as_str()).collect();
         if path.first() != Some(&"std") || path.len() != 2 {
             diags.push(Diagnostic::error(u.span, format!("cannot import from `{}`", path.join("::"))).with_help(format!(

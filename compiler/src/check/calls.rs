@@ -365,8 +365,13 @@ impl<'a> Checker<'a> {
                 Some((e, _)) => self.expr(b, scope, e),
                 None => match &formal.default {
                     Some(d) => {
+                        // On the call stack, so a default that calls the
+                        // module itself is a cycle, not endless expansion.
                         let mut empty = Scope::new(ScopeKind::Module);
-                        self.expr(b, &mut empty, d)
+                        self.call_stack.push((m.name.node.clone(), callee.span));
+                        let tv = self.expr(b, &mut empty, d);
+                        self.call_stack.pop();
+                        tv
                     }
                     None => {
                         self.error(

@@ -199,12 +199,28 @@ impl<'a> Checker<'a> {
                 }
             }
         }
-        let (d, s) = go(self, &u.node)?;
+        let reported = self.diags.len();
+        let Some((d, s)) = go(self, &u.node) else {
+            // An unknown unit name is reported where it is found; anything
+            // else is an exponent that is no fraction, or too large.
+            if self.diags.len() == reported {
+                self.error(
+                    Diagnostic::error(u.span, format!("invalid unit `{}`", u.node))
+                        .with_label("an exponent here is not a fraction with a nonzero denominator, or is too large")
+                        .with_help("write exponents as small fractions, e.g. `s^(-7/6)`"),
+                );
+            }
+            return None;
+        };
         Some((d, s, u.node.to_string()))
     }
 
     /// Evaluates a constant expression (numbers, units, constants, arithmetic).
     pub(super) fn const_eval(&mut self, e: &'a Expr) -> Option<(f64, Dim)> {
+        stacker::maybe_grow(super::STACK_RED_ZONE, super::STACK_GROWTH, || self.const_eval_here(e))
+    }
+
+    fn const_eval_here(&mut self, e: &'a Expr) -> Option<(f64, Dim)> {
         let mut b = Builder::new(ir::Function::default(), true);
         let mut scope = Scope::new(ScopeKind::Const);
         let tv = self.expr(&mut b, &mut scope, e)?;

@@ -28,7 +28,14 @@ impl<'a> Checker<'a> {
         }
     }
 
+    /// Checks and lowers `e`. Expressions nest as deep as the source
+    /// does (a sum of 5,000 terms is 5,000 deep), so the recursion grows
+    /// the stack on the heap when it runs low.
     pub(super) fn expr(&mut self, b: &mut Builder, scope: &mut Scope<'a>, e: &'a Expr) -> Option<Tv> {
+        stacker::maybe_grow(STACK_RED_ZONE, STACK_GROWTH, || self.expr_here(b, scope, e))
+    }
+
+    fn expr_here(&mut self, b: &mut Builder, scope: &mut Scope<'a>, e: &'a Expr) -> Option<Tv> {
         match &e.node {
             ExprKind::Error => None,
             ExprKind::Number(x, unit) => {

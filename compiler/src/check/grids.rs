@@ -53,6 +53,10 @@ impl<'a> Checker<'a> {
                 )));
                 continue;
             };
+            if args.iter().take_while(|b| !std::ptr::eq(*b, a)).any(|b| b.name.as_ref().is_some_and(|m| m.node == n.node)) {
+                self.error(Diagnostic::error(n.span, format!("argument `{}` is given twice", n.node)).with_help("give each argument once"));
+                continue;
+            }
             let Some(i) = wanted.iter().position(|w| *w == n.node) else {
                 let mut d = Diagnostic::error(n.span, format!("`{}` has no argument `{}`", callee.node, n.node));
                 if let Some(s) = did_you_mean(&n.node, wanted.iter().copied()) {
@@ -102,7 +106,20 @@ impl<'a> Checker<'a> {
                 );
                 return None;
             }
-            (0.0, 1.0 / rate, (rate * duration).round().max(1.0), "s")
+            let samples = rate * duration;
+            if samples.round() < 1.0 || (samples - samples.round()).abs() > 1e-9 * samples {
+                self.error(
+                    Diagnostic::error(
+                        def.span,
+                        format!("invalid grid `{}`: rate × duration is {samples}, not a whole number of samples", name.node),
+                    )
+                    .with_help(
+                        "choose a duration that holds a whole number of samples at the rate, e.g. `times(rate: 4096 Hz, duration: 2 s)`",
+                    ),
+                );
+                return None;
+            }
+            (0.0, 1.0 / rate, samples.round(), "s")
         };
         if !(len <= MAX_POINTS) {
             self.error(

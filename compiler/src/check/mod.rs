@@ -35,6 +35,13 @@ mod scene;
 
 pub use catalogue::{Constant, BUILTINS, CONSTANTS};
 
+/// The recursive walks over expressions grow the stack by
+/// [`STACK_GROWTH`] bytes whenever less than [`STACK_RED_ZONE`] is left
+/// (`stacker`), so deeply nested source cannot overflow it.
+pub(crate) const STACK_RED_ZONE: usize = 128 * 1024;
+/// See [`STACK_RED_ZONE`].
+pub(crate) const STACK_GROWTH: usize = 4 * 1024 * 1024;
+
 /// A checked, lowered value: IR value and physical dimension.
 #[derive(Clone, Copy, Debug)]
 struct Tv {
@@ -122,8 +129,8 @@ impl<'a> Checker<'a> {
     /// Resolves names in every module body without lowering it, so typos in
     /// modules no scene uses are still reported.
     pub fn resolve_module(&mut self, m: &ModuleDef) {
-        let mut names: HashSet<String> = m.args.iter().map(|a| a.name.node.clone()).collect();
-        for n in m.weights.iter().map(|w| &w.name).chain(m.lets.iter().map(|l| &l.name)) {
+        let mut names: HashSet<String> = HashSet::new();
+        for n in m.args.iter().map(|a| &a.name).chain(m.weights.iter().map(|w| &w.name)).chain(m.lets.iter().map(|l| &l.name)) {
             if !names.insert(n.node.clone()) {
                 self.error(
                     Diagnostic::error(n.span, format!("`{}` is defined twice in module `{}`", n.node, m.name.node))
@@ -140,6 +147,10 @@ impl<'a> Checker<'a> {
     }
 
     fn resolve_expr(&mut self, e: &Expr, names: &HashSet<String>) {
+        stacker::maybe_grow(STACK_RED_ZONE, STACK_GROWTH, || self.resolve_expr_here(e, names))
+    }
+
+    fn resolve_expr_here(&mut self, e: &Expr, names: &HashSet<String>) {
         match &e.node {
             ExprKind::Name(n) => {
                 if !names.contains(n) && !CONSTANTS.iter().any(|c| c.name == n) {

@@ -212,6 +212,15 @@ impl<'a> Checker<'a> {
                     }
                 }
             }
+            if !x.is_finite() {
+                self.error(
+                    Diagnostic::error(k.value.span, format!("knob `{name}` is {x}"))
+                        .with_label("not a finite number")
+                        .with_help("a knob must be a finite number: check divisions by zero and overflow"),
+                );
+                self.failed_knobs.insert(name.clone());
+                continue;
+            }
             self.knobs.insert(name.clone(), (x, dim));
         }
         for o in overrides {

@@ -110,13 +110,15 @@ pub fn render_all(diags: &[Diagnostic], sources: &SourceMap, color: bool) -> Str
     diags.iter().map(|d| d.render(sources, color)).collect::<Vec<_>>().join("")
 }
 
-/// The closest candidate to `name` by edit distance, if close enough to suggest.
+/// The closest candidate to `name` by edit distance, if close enough to
+/// suggest; of equally close ones, the first in alphabetical order, so the
+/// suggestion does not depend on the order candidates come in.
 pub fn did_you_mean<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
     let mut best: Option<(usize, &str)> = None;
     for c in candidates {
         let d = edit_distance(name, c);
         let limit = (name.len().max(c.len()) / 3).max(1);
-        if d <= limit && best.is_none_or(|(bd, _)| d < bd) {
+        if d <= limit && best.is_none_or(|(bd, bc)| (d, c) < (bd, bc)) {
             best = Some((d, c));
         }
     }

@@ -68,10 +68,19 @@ fn expr<'a, I: ValueInput<'a, Token = Token, Span = Span>>() -> impl Parser<'a, 
         let unit_suffix = select! { Token::Ident(s) if is_unit_name(&s) => s }
             .map_with(|s, e| Spanned::new(UnitExpr::Name(Spanned::new(s, e.span())), e.span()))
             .or(unit_expr().delimited_by(op("["), op("]")));
+        // A literal beyond f64's range reads as infinity: an error, kept
+        // as the number so checking goes on.
+        let finite = |n: f64, span: Span, emitter: &mut chumsky::input::Emitter<Rich<'a, Token, Span>>| {
+            if !n.is_finite() {
+                emitter.emit(Rich::custom(span, "number too large: the largest is about 1.8e308"));
+            }
+            n
+        };
         let number = select! { Token::Num(n) => n }
+            .validate(move |n, e, emitter| finite(n, e.span(), emitter))
             .then(unit_suffix.or_not())
             .map(|(n, u)| ExprKind::Number(n, u))
-            .or(select! { Token::Imag(n) => ExprKind::Imaginary(n) });
+            .or(select! { Token::Imag(n) => n }.validate(move |n, e, emitter| finite(n, e.span(), emitter)).map(ExprKind::Imaginary));
         let arg = ident().then_ignore(op(":")).or_not().then(expr.clone()).map(|(name, value)| Arg { name, value });
         let args = arg.separated_by(op(",")).allow_trailing().collect::<Vec<_>>().delimited_by(just(Token::CallOpen), op(")"));
         let call = ident().then(args).map(|(callee, args)| ExprKind::Call { callee, args });
@@ -315,6 +324,14 @@ fn explain_unclosed(d: Diagnostic, e: &Rich<'_, Token, Span>, text: &str) -> Dia
 }
 
 fn syntax_diagnostic(e: &Rich<'_, Token, Span>) -> Diagnostic {
+    let d = syntax_diagnostic_at(e);
+    // At the end of input chumsky may give a span that ends before it
+    // starts (from the end of the input back to the last token).
+    let span = Span { start: d.span.start.min(d.span.end), end: d.span.start.max(d.span.end), ..d.span };
+    Diagnostic { span, ..d }
+}
+
+fn syntax_diagnostic_at(e: &Rich<'_, Token, Span>) -> Diagnostic {
     let found = match e.found() {
         Some(t) => format!("`{t}`"),
         None => "end of file".to_string(),
