@@ -89,8 +89,11 @@ fn ints<T: Copy + Into<i128> + std::fmt::Display>(v: Vec<T>) -> Result<Vec<f64>,
 }
 
 /// Reads one `.npy` stream into an [`Array`]; errors are messages to be prefixed with where it came from.
-fn read_npy(r: impl Read) -> Result<Array, String> {
-    let npy = NpyFile::new(r).map_err(|e| format!("not a valid .npy array: {e}"))?;
+fn read_npy(mut r: impl Read) -> Result<Array, String> {
+    let mut head = Vec::new();
+    r.by_ref().take(crate::npy::HEADER_PROBE as u64).read_to_end(&mut head).map_err(|e| format!("cannot read the array: {e}"))?;
+    crate::npy::check_header(&head).map_err(|e| format!("not a valid .npy array: {e}"))?;
+    let npy = NpyFile::new(Cursor::new(head).chain(r)).map_err(|e| format!("not a valid .npy array: {e}"))?;
     let shape = npy.shape().iter().map(|&d| usize::try_from(d).ok()).collect::<Option<Vec<usize>>>();
     let Some((shape, len)) = shape.and_then(|s| element_count(&s).map(|n| (s, n))) else {
         return Err(format!("shape {:?} is too large", npy.shape()));

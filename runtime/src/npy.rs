@@ -14,9 +14,50 @@ pub struct NpyData {
     pub complex: bool,
 }
 
+/// How deep brackets may nest in a `.npy` header: a plain dtype's header
+/// nests 2 deep, a structured one a few more.
+const MAX_HEADER_NESTING: usize = 8;
+
+/// Checks the start of a `.npy` file (`head`: at least its header, or the
+/// whole file if shorter) before the header parser sees it: npyz's parser
+/// takes time exponential in the nesting of brackets (found by
+/// `scripts/fuzz.sh`: a 247-byte header of nested `[` ran for minutes), so
+/// a header nested deeper than any dtype needs is an error here.
+pub(crate) fn check_header(head: &[u8]) -> Result<(), String> {
+    if head.len() < 10 || &head[..6] != b"\x93NUMPY" {
+        return Ok(()); // npyz reports a wrong magic or a cut header itself
+    }
+    let (len, start) = match head[6] {
+        1 => (u16::from_le_bytes([head[8], head[9]]) as usize, 10),
+        _ if head.len() >= 12 => (u32::from_le_bytes([head[8], head[9], head[10], head[11]]) as usize, 12),
+        _ => return Ok(()),
+    };
+    let header = &head[start.min(head.len())..(start + len).min(head.len())];
+    let mut depth = 0usize;
+    for &c in header {
+        match c {
+            b'[' | b'(' | b'{' => {
+                depth += 1;
+                if depth > MAX_HEADER_NESTING {
+                    return Err(format!("its header nests brackets more than {MAX_HEADER_NESTING} deep; it is not a NumPy array header"));
+                }
+            }
+            b']' | b')' | b'}' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Bytes to read before [`check_header`]: the header's size field is 4
+/// bytes, so a real header fits in this unless it is larger than any dtype
+/// needs (the check then sees its first 64 KiB).
+pub(crate) const HEADER_PROBE: usize = 12 + 65536;
+
 /// Reads a 1-D `.npy` array of float64, float32, complex128 or complex64.
 pub fn read(path: &Path) -> Result<NpyData, Error> {
     let bytes = std::fs::read(path).map_err(|e| Error::Io(format!("cannot read {}: {e}", path.display())))?;
+    check_header(&bytes[..bytes.len().min(HEADER_PROBE)]).map_err(|e| Error::Io(format!("{} is not a .npy file: {e}", path.display())))?;
     let open = || npyz::NpyFile::new(&bytes[..]).map_err(|e| Error::Io(format!("{} is not a .npy file: {e}", path.display())));
     let npy = open()?;
     let shape = npy.shape().to_vec();

@@ -111,7 +111,11 @@ impl<'a> Checker<'a> {
                 self.error(
                     Diagnostic::error(
                         def.span,
-                        format!("invalid grid `{}`: rate × duration is {samples}, not a whole number of samples", name.node),
+                        format!(
+                            "invalid grid `{}`: rate × duration is {}, not a whole number of samples",
+                            name.node,
+                            (samples * 1e6).round() / 1e6
+                        ),
                     )
                     .with_help(
                         "choose a duration that holds a whole number of samples at the rate, e.g. `times(rate: 4096 Hz, duration: 2 s)`",
