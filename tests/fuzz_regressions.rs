@@ -31,3 +31,11 @@ fn npy_header_of_nested_brackets_is_rejected_at_once() {
     fails_fast(|| npy::read(&path), "nests brackets more than 8 deep", Duration::from_secs(1));
     fails_fast(|| Dataset::read(&path), "nests brackets more than 8 deep", Duration::from_secs(1));
 }
+
+/// A 10 kB GWOSC-layout file whose `strain/Strain` chunks declare 4 GB:
+/// reading it allocated them.
+#[test]
+fn hdf5_with_huge_declared_chunks_is_rejected_before_allocating() {
+    let path = case("hdf5_huge_chunks.hdf5");
+    fails_fast(|| gwml_strain::gwosc::read(&path), "strain/Strain", Duration::from_secs(2));
+}

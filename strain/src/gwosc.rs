@@ -43,6 +43,10 @@ pub struct WriteOptions {
     pub gzip_level: u8,
 }
 
+/// The largest chunk of `strain/Strain` gwml decompresses (64 MiB of f64;
+/// GWOSC files use chunks of a few thousand samples).
+const MAX_CHUNK_SAMPLES: u64 = 1 << 23;
+
 /// Reads a GWOSC strain file whole, checking every field it uses.
 pub fn read(path: &Path) -> Result<Series, Error> {
     let reader = open(path)?;
@@ -128,6 +132,29 @@ pub fn open(path: &Path) -> Result<Reader, Error> {
     if samples == 0 {
         return Err(fail("`strain/Strain` is empty".into()));
     }
+    // Sizes the file declares, against what it can hold, before anything
+    // is allocated by them (cargo-fuzz found a 10 kB file with a chunk that
+    // declared 4 GB of stored bytes, which the reader allocated): a sample
+    // is 8 bytes, gzip shrinks data at most ~1,032-fold, and every chunk
+    // lies inside the file.
+    let file_bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(u64::MAX);
+    if (samples as u64).saturating_mul(8) / 1100 > file_bytes {
+        return Err(fail(format!("`strain/Strain` declares {samples} samples, more than a file of {file_bytes} bytes can hold")));
+    }
+    if let Some(bad) = strain.chunks().ok().and_then(|cs| cs.into_iter().find(|c| c.address.saturating_add(c.storage_size) > file_bytes)) {
+        return Err(fail(format!(
+            "a chunk of `strain/Strain` declares {} bytes at byte {}, past the end of the {file_bytes}-byte file (truncated or corrupt)",
+            bad.storage_size, bad.address
+        )));
+    }
+    if let Ok(Some(chunk)) = strain.chunk_shape() {
+        let floats = chunk.iter().try_fold(1u64, |n, d| n.checked_mul(*d)).unwrap_or(u64::MAX);
+        if floats == 0 || floats > MAX_CHUNK_SAMPLES {
+            return Err(fail(format!(
+                "`strain/Strain` is stored in chunks of {chunk:?} samples; gwml reads chunks of 1 to {MAX_CHUNK_SAMPLES} (the file is corrupt or unusual)"
+            )));
+        }
+    }
     if let Some(n) = attrs.get("Npoints").and_then(attr_number) {
         if n as usize != samples {
             return Err(fail(format!("`strain/Strain` has {samples} samples but its attribute `Npoints` says {n}")));
@@ -153,6 +180,12 @@ pub fn open(path: &Path) -> Result<Reader, Error> {
     let dq_mask = match file.dataset("quality/simple/DQmask") {
         Err(_) => None,
         Ok(ds) => {
+            let declared = ds.shape().map(|s| s.iter().product::<u64>()).unwrap_or(0);
+            if declared != seconds as u64 {
+                return Err(fail(format!(
+                    "`quality/simple/DQmask` has {declared} entries but the strain spans {seconds} s (one entry per second)"
+                )));
+            }
             let mask = ds.read_u32().map_err(|e| fail(format!("cannot read `quality/simple/DQmask` as integers: {e}")))?;
             if mask.len() != seconds {
                 return Err(fail(format!(
