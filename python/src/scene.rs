@@ -121,37 +121,26 @@ pub(crate) struct ParamInfo {
 /// An input of a scene: `name`, `unit`, `shape` (a tuple; `()` for a
 /// scalar), `dtype` ("float64" or "complex128"), `has_default`, and `role`
 /// ("data", "weight", "dropout_mask" or "noise").
-#[pyclass(frozen, module = "gwml")]
+#[pyclass(frozen, get_all, module = "gwml")]
 pub(crate) struct InputInfo {
-    #[pyo3(get)]
     name: String,
-    #[pyo3(get)]
     unit: String,
     /// As NumPy gives it: `()` for a scalar.
-    #[pyo3(get)]
     shape: Py<PyTuple>,
-    #[pyo3(get)]
     dtype: &'static str,
-    #[pyo3(get)]
     has_default: bool,
-    #[pyo3(get)]
     role: &'static str,
 }
 
 /// An output of a scene: `name`, `unit` (base units), `shape`, `dtype`,
 /// and `grads`, the params `value_and_grad` differentiates it by.
-#[pyclass(frozen, module = "gwml")]
+#[pyclass(frozen, get_all, module = "gwml")]
 pub(crate) struct OutputInfo {
-    #[pyo3(get)]
     name: String,
-    #[pyo3(get)]
     unit: String,
     /// As NumPy gives it: `()` for a scalar.
-    #[pyo3(get)]
     shape: Py<PyTuple>,
-    #[pyo3(get)]
     dtype: &'static str,
-    #[pyo3(get)]
     grads: Vec<String>,
 }
 
