@@ -55,7 +55,7 @@ pub(crate) fn run<'py>(
     }
     let names: Vec<&str> = varied.iter().map(|(n, _)| n.as_str()).collect();
     let fixed: Vec<(&str, f64)> = fixed.iter().map(|(n, x)| (n.as_str(), *x)).collect();
-    let given = scene.inputs_given(inputs)?;
+    let given = scene.input_args(inputs)?;
     let views: Vec<(usize, DataRef<'_>)> = given.iter().map(|(i, g)| (*i, g.view())).collect();
     let mode = if grad { Mode::ValueAndGrad } else { Mode::Forward };
     let shared = scene.shared();

@@ -221,18 +221,25 @@ impl Scene {
         Ok(out)
     }
 
+    /// The index of the input a dict key names (a `RunError` with a
+    /// suggestion when it names none).
+    fn input_index(&self, key: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let py = key.py();
+        let func = self.func();
+        let name: String = key.extract().map_err(|_| bind_error(py, "input names must be strings".into()))?;
+        func.inputs.iter().position(|p| p.name == name).ok_or_else(|| {
+            let suggestion = did_you_mean(&name, func.inputs.iter().map(|p| p.name.as_str())).map(str::to_string);
+            run_error(py, Error::UnknownName { kind: "input", name, suggestion })
+        })
+    }
+
     /// Inputs from a dict of name → data, by input index.
-    fn input_args<'py>(&self, inputs: Option<&Bound<'py, PyDict>>) -> PyResult<Vec<(usize, Given<'py>)>> {
+    pub(crate) fn input_args<'py>(&self, inputs: Option<&Bound<'py, PyDict>>) -> PyResult<Vec<(usize, Given<'py>)>> {
         let Some(inputs) = inputs else { return Ok(Vec::new()) };
         let func = self.func();
         let mut out = Vec::with_capacity(inputs.len());
         for (k, v) in inputs.iter() {
-            let py = k.py();
-            let name: String = k.extract().map_err(|_| bind_error(py, "input names must be strings".into()))?;
-            let Some(i) = func.inputs.iter().position(|p| p.name == name) else {
-                let suggestion = did_you_mean(&name, func.inputs.iter().map(|p| p.name.as_str())).map(str::to_string);
-                return Err(run_error(py, Error::UnknownName { kind: "input", name, suggestion }));
-            };
+            let i = self.input_index(&k)?;
             out.push((i, data::given(func, &func.inputs[i], &v)?));
         }
         Ok(out)
@@ -428,11 +435,7 @@ impl Scene {
         let func = self.func();
         let mut set: Vec<(usize, Option<Arc<Data>>)> = Vec::new();
         for (k, v) in inputs.iter() {
-            let name: String = k.extract().map_err(|_| bind_error(py, "input names must be strings".into()))?;
-            let Some(i) = func.inputs.iter().position(|p| p.name == name) else {
-                let suggestion = did_you_mean(&name, func.inputs.iter().map(|p| p.name.as_str())).map(str::to_string);
-                return Err(run_error(py, Error::UnknownName { kind: "input", name, suggestion }));
-            };
+            let i = self.input_index(&k)?;
             let data = if v.is_none() { None } else { Some(Arc::new(data::given(func, &func.inputs[i], &v)?.view().to_data())) };
             set.push((i, data));
         }
@@ -519,9 +522,5 @@ impl Scene {
 impl Scene {
     pub(crate) fn shared(&self) -> &Arc<Shared> {
         &self.shared
-    }
-
-    pub(crate) fn inputs_given<'py>(&self, inputs: Option<&Bound<'py, PyDict>>) -> PyResult<Vec<(usize, Given<'py>)>> {
-        self.input_args(inputs)
     }
 }
