@@ -169,6 +169,34 @@ fn errors_keep_the_session_and_set_the_exit_status() {
     insta::assert_snapshot!(out);
 }
 
+/// Compile errors point at the text typed (`<input>`), or at the earlier
+/// definition an entry breaks (`<session NAME>`), never at the program the
+/// REPL builds or its generated names.
+#[test]
+fn errors_point_at_the_typed_text() {
+    let (ok, out) = piped("param a = 1.0\nlet b = sin(a)\n:grad a * x wrt a, x\n:grad a * 2.0 wrt q\nlet a = 1 Hz\n:grad cis(a) wrt a\n");
+    assert!(!ok);
+    assert!(out.contains("╭─[ <input>:1:11 ]\n   │\n 1 │ :grad a * x wrt a, x\n"), "the unknown `x` of the expression: {out}");
+    assert!(out.contains("╭─[ <input>:1:19 ]\n   │\n 1 │ :grad a * 2.0 wrt q\n"), "the `q` after wrt: {out}");
+    assert!(out.contains("╭─[ <session b>:1:13 ]") && out.contains("<session b> was defined earlier"), "the definition broken: {out}");
+    assert!(out.contains("cannot differentiate the entry: it is complex"), "{out}");
+    assert!(!out.contains("<repl>") && !out.contains("__value") && !out.contains("__repl"), "{out}");
+    assert!(out.contains("gw> :grad cis(a) wrt a"), "{out}");
+    // A loaded file's modules keep their own lines.
+    let dir = std::env::temp_dir().join(format!("gwml-repl-lines-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("m.gw");
+    std::fs::write(
+        &file,
+        "scene s {\n    // µs: the scene is blanked byte for byte\n    output y = 1.0\n}\nmodule wave(x) {\n    sin(x)\n}\n",
+    )
+    .unwrap();
+    let (_, out) = piped(&format!(":load {}\nwave(1 Hz)\nwave(0.0)\n", file.display()));
+    assert!(out.contains(&format!("╭─[ {}:6:9 ]", file.display())), "an error inside the file names its line: {out}");
+    assert!(out.contains("gw> wave(0.0)\n0\n"), "{out}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn load_run_save_and_inspect() {
     let dir = std::env::temp_dir().join(format!("gwml-repl-{}", std::process::id()));

@@ -24,7 +24,8 @@ use std::path::PathBuf;
 use std::rc::Rc;
 use std::time::Instant;
 
-const SCENE: &str = "__repl";
+mod session;
+use session::{Def, Generated, Loaded, Part, Session, SCENE, VALUE};
 
 /// `:qscan STRAIN --gps T ...` parses its words as `gwml qscan` does.
 #[derive(clap::Parser)]
@@ -32,7 +33,6 @@ struct QscanCommand {
     #[command(flatten)]
     args: crate::qscan::QscanArgs,
 }
-const VALUE: &str = "__value";
 
 /// Commands, for `:help` and completion.
 const COMMANDS: &[(&str, &str)] = &[
@@ -58,129 +58,6 @@ const COMMANDS: &[(&str, &str)] = &[
     (":help", ":help                            this list"),
     (":quit", ":quit                            leave (or Ctrl-D)"),
 ];
-
-/// What the user has defined.
-#[derive(Clone, Default)]
-struct Session {
-    uses: Vec<String>,
-    /// `(name, source)` of modules.
-    modules: Vec<(String, String)>,
-    /// `(name, source)` of scene statements: grid, param, input, let.
-    stmts: Vec<(String, String)>,
-    /// Loaded files.
-    loaded: Vec<Loaded>,
-    precision: Option<Precision>,
-}
-
-/// A file brought in by `:load`.
-#[derive(Clone)]
-struct Loaded {
-    path: String,
-    text: String,
-    /// The text with its scenes blanked (lines kept): what entries need,
-    /// since an expression can call a loaded module but not a scene, and
-    /// checking the scenes again for every entry is most of its time.
-    modules: String,
-}
-
-impl Loaded {
-    fn new(path: &str, text: String, program: &Program) -> Loaded {
-        let mut modules = text.clone();
-        for item in &program.ast.items {
-            if let gwml::compiler::front::syntax::ast::Item::Scene(scene) = item {
-                let blank: String = text[scene.span.start..scene.span.end].chars().map(|c| if c == '\n' { '\n' } else { ' ' }).collect();
-                modules.replace_range(scene.span.start..scene.span.end, &blank);
-            }
-        }
-        Loaded { path: path.to_string(), text, modules }
-    }
-}
-
-/// A new definition.
-enum Def {
-    Use(String),
-    Module(String, String),
-    Stmt(String, String),
-}
-
-impl Session {
-    /// The session as one program, with `extra` statements in its scene,
-    /// without the loaded files' scenes (as entries are evaluated).
-    fn source(&self, new: Option<&Def>, extra: &str) -> String {
-        self.source_with(new, extra, false)
-    }
-
-    /// The whole session as one program, loaded scenes included.
-    fn full_source(&self) -> String {
-        self.source_with(None, "", true)
-    }
-
-    fn source_with(&self, new: Option<&Def>, extra: &str, scenes: bool) -> String {
-        let mut uses = self.uses.clone();
-        let mut modules = self.modules.clone();
-        let mut stmts = self.stmts.clone();
-        match new {
-            Some(Def::Use(u)) => uses.push(u.clone()),
-            Some(Def::Module(n, s)) => replace(&mut modules, n, s),
-            Some(Def::Stmt(n, s)) => replace(&mut stmts, n, s),
-            None => {}
-        }
-        let mut out = String::new();
-        for u in &uses {
-            out += u;
-            out += "\n";
-        }
-        for l in &self.loaded {
-            out += if scenes { &l.text } else { &l.modules };
-            out += "\n";
-        }
-        for (_, m) in &modules {
-            out += m;
-            out += "\n";
-        }
-        out += &format!("scene {SCENE} {{\n");
-        for (_, s) in &stmts {
-            out += "    ";
-            out += s;
-            out += "\n";
-        }
-        out += extra;
-        out += "\n}\n";
-        out
-    }
-
-    fn commit(&mut self, d: Def) {
-        match d {
-            Def::Use(u) => {
-                if !self.uses.contains(&u) {
-                    self.uses.push(u)
-                }
-            }
-            Def::Module(n, s) => replace(&mut self.modules, &n, &s),
-            Def::Stmt(n, s) => replace(&mut self.stmts, &n, &s),
-        }
-    }
-
-    /// The session without definition `name`, if it has one.
-    fn without(&self, name: &str) -> Option<Session> {
-        let mut s = self.clone();
-        let before = s.modules.len() + s.stmts.len();
-        s.modules.retain(|(n, _)| n != name);
-        s.stmts.retain(|(n, _)| n != name);
-        (s.modules.len() + s.stmts.len() < before).then_some(s)
-    }
-
-    fn names(&self) -> Vec<String> {
-        self.modules.iter().chain(&self.stmts).map(|(n, _)| n.clone()).collect()
-    }
-}
-
-fn replace(list: &mut Vec<(String, String)>, name: &str, src: &str) {
-    match list.iter_mut().find(|(n, _)| n == name) {
-        Some(slot) => slot.1 = src.to_string(),
-        None => list.push((name.to_string(), src.to_string())),
-    }
-}
 
 /// Runs the REPL on a terminal, or line by line on piped input.
 /// Returns the number of entries that failed.
@@ -354,7 +231,7 @@ impl Repl {
     fn entry(&mut self, text: &str) -> Result<bool, String> {
         let t = text.trim();
         if let Some(cmd) = t.strip_prefix(':') {
-            return self.command(cmd);
+            return self.command(cmd, t);
         }
         let first = t.split_whitespace().next().unwrap_or("");
         let name_after = |kw: &str| -> Option<String> {
@@ -370,8 +247,7 @@ impl Repl {
             _ => None,
         };
         if let Some(def) = def {
-            let src = self.session.source(Some(&def), "");
-            self.compile(&src)?;
+            self.compile(&self.session.source(Some(&def), t, &[]))?;
             let shown = match &def {
                 Def::Stmt(n, _) if ["let", "param", "knob"].contains(&first) => Some(n.clone()),
                 _ => None,
@@ -379,7 +255,7 @@ impl Repl {
             // A value is evaluated before the definition is kept, so one that
             // cannot be evaluated changes nothing.
             let message = match &shown {
-                Some(n) => format!("{n} = {}", self.evaluate_in(Some(&def), n)?),
+                Some(n) => format!("{n} = {}", self.evaluate_in(Some(&def), t, n)?),
                 None => "ok".to_string(),
             };
             self.session.commit(def);
@@ -387,7 +263,7 @@ impl Repl {
             println!("{message}");
             return Ok(true);
         }
-        let v = self.evaluate(t)?;
+        let v = self.evaluate_in(None, t, t)?;
         println!("{v}");
         Ok(true)
     }
@@ -399,29 +275,39 @@ impl Repl {
         }
     }
 
-    fn compile(&self, src: &str) -> Result<Model, String> {
-        Model::from_source("<repl>", src).map_err(|e| self.render(e))
+    /// Compiles `program`; diagnostics point at what was typed.
+    fn compile(&self, program: &Generated) -> Result<Model, String> {
+        Model::from_source("<repl>", &program.text).map_err(|e| self.render_in(program, e))
     }
 
-    fn scene(&self, extra: &str) -> Result<gwml::Scene, String> {
-        self.scene_in(None, extra)
+    fn render_in(&self, program: &Generated, e: Error) -> String {
+        match e {
+            Error::Compile(c) => program.remap(c).render(self.color),
+            other => self.render(other),
+        }
+    }
+
+    /// The session's scene with an output `__value` = `expr` (part of the
+    /// entry `typed`) and `extra` statements.
+    fn scene(&self, typed: &str, expr: &str, extra: &[Part]) -> Result<gwml::Scene, String> {
+        let mut parts = vec![Part::Glue(format!("    output {VALUE} =\n")), Part::Typed(expr)];
+        parts.extend(extra.iter().cloned());
+        self.scene_in(None, typed, &parts)
     }
 
     /// The session's scene with `new` defined and `extra` statements.
-    fn scene_in(&self, new: Option<&Def>, extra: &str) -> Result<gwml::Scene, String> {
-        let src = self.session.source(new, extra);
-        let model = self.compile(&src)?;
-        model.scene_with(Some(SCENE), Options { precision: self.session.precision, ..Default::default() }).map_err(|e| self.render(e))
+    fn scene_in(&self, new: Option<&Def>, typed: &str, extra: &[Part]) -> Result<gwml::Scene, String> {
+        let program = self.session.source(new, typed, extra);
+        let model = self.compile(&program)?;
+        model
+            .scene_with(Some(SCENE), Options { precision: self.session.precision, ..Default::default() })
+            .map_err(|e| self.render_in(&program, e))
     }
 
-    /// Value of `expr`, formatted.
-    fn evaluate(&self, expr: &str) -> Result<String, String> {
-        self.evaluate_in(None, expr)
-    }
-
-    /// Value of `expr` in the session with `new` defined, formatted.
-    fn evaluate_in(&self, new: Option<&Def>, expr: &str) -> Result<String, String> {
-        let scene = self.scene_in(new, &format!("    output {VALUE} =\n{expr}"))?;
+    /// Value of `expr` (part of the entry `typed`) in the session with
+    /// `new` defined, formatted.
+    fn evaluate_in(&self, new: Option<&Def>, typed: &str, expr: &str) -> Result<String, String> {
+        let scene = self.scene_in(new, typed, &[Part::Glue(format!("    output {VALUE} =\n")), Part::Typed(expr)])?;
         // Run-time errors name the generated output: name what was typed.
         let typed = |e: Error| self.render(e).replace(&format!("output `{VALUE}`"), &format!("`{}`", expr.trim()));
         let out = scene.bind().forward().map_err(typed)?;
@@ -430,7 +316,8 @@ impl Repl {
         Ok(format_value(out.value(VALUE).map_err(|e| self.render(e))?, f, unit))
     }
 
-    fn command(&mut self, cmd: &str) -> Result<bool, String> {
+    /// Handles `:cmd`, typed as `typed`.
+    fn command(&mut self, cmd: &str, typed: &str) -> Result<bool, String> {
         let (name, rest) = cmd.split_once(char::is_whitespace).map(|(a, b)| (a, b.trim())).unwrap_or((cmd.trim(), ""));
         match name {
             "q" | "quit" | "exit" => return Ok(false),
@@ -442,7 +329,8 @@ impl Repl {
             }
             "grad" | "adjoint" => {
                 let (expr, wrt) = split_wrt(rest).ok_or_else(|| format!("error: usage: :{name} EXPR wrt NAME[, NAME...]\n"))?;
-                let scene = self.scene(&format!("    output {VALUE} = {expr}\n    grad {VALUE} wrt [{wrt}]"))?;
+                let scene =
+                    self.scene(typed, expr, &[Part::Glue(format!("\n    grad {VALUE} wrt [")), Part::Typed(wrt), Part::Glue("]".into())])?;
                 if name == "adjoint" {
                     print!("{}", gwml::compiler::driver::ir_text(&scene.pipeline.optimized));
                     return Ok(true);
@@ -456,21 +344,24 @@ impl Repl {
                 }
             }
             "type" => {
-                let scene = self.scene(&format!("    output {VALUE} = {rest}"))?;
+                let scene = self.scene(typed, rest, &[])?;
                 let f = scene.ir();
                 let o = &f.outputs[0];
                 println!("{} [{}]", f.fmt_ty(f.ty(o.value)), o.unit);
             }
-            "ir" => print!("{}", gwml::compiler::driver::ir_text(&self.scene(&format!("    output {VALUE} = {rest}"))?.pipeline.pruned)),
-            "clif" => print!("{}", self.scene(&format!("    output {VALUE} = {rest}"))?.forward_kernel().clif),
+            "ir" => print!("{}", gwml::compiler::driver::ir_text(&self.scene(typed, rest, &[])?.pipeline.pruned)),
+            "clif" => print!("{}", self.scene(typed, rest, &[])?.forward_kernel().clif),
             "time" => {
                 // `:time EXPR wrt NAME, ...` times the value and its gradient.
                 let (expr, wrt) = match split_wrt(rest) {
                     Some((e, w)) => (e, Some(w)),
                     None => (rest, None),
                 };
-                let grad = wrt.map(|w| format!("\n    grad {VALUE} wrt [{w}]")).unwrap_or_default();
-                let scene = self.scene(&format!("    output {VALUE} = {expr}{grad}"))?;
+                let grad = match wrt {
+                    Some(w) => vec![Part::Glue(format!("\n    grad {VALUE} wrt [")), Part::Typed(w), Part::Glue("]".into())],
+                    None => Vec::new(),
+                };
+                let scene = self.scene(typed, expr, &grad)?;
                 let mut run = scene.bind();
                 let once = |run: &mut gwml::Run| if wrt.is_some() { run.value_and_grad() } else { run.forward() }.map(|_| ());
                 once(&mut run).map_err(|e| self.render(e))?;
@@ -522,14 +413,14 @@ impl Repl {
             "save" => {
                 // Settings go with the definitions: `:precision` becomes the scene's.
                 let precision = self.session.precision.map(|p| format!("\n    precision: {p}")).unwrap_or_default();
-                let src = self.session.full_source().replace(&format!("scene {SCENE} {{"), &format!("scene session {{{precision}"));
+                let src = self.session.full_source().text.replace(&format!("scene {SCENE} {{"), &format!("scene session {{{precision}"));
                 Program::parse(rest, &src).map_err(|e| e.render(self.color))?;
                 std::fs::write(rest, src).map_err(|e| format!("error: cannot write {rest}: {e}\n"))?;
                 println!("saved {rest}");
             }
             "plot" => {
                 let (expr, file) = rest.rsplit_once(" to ").ok_or("error: usage: :plot EXPR to FILE.png\n")?;
-                let scene = self.scene(&format!("    output {VALUE} =\n{expr}"))?;
+                let scene = self.scene(typed, expr, &[])?;
                 let out = scene.bind().forward().map_err(|e| self.render(e))?;
                 let f = scene.ir();
                 let o = &f.outputs[0];
@@ -564,7 +455,7 @@ impl Repl {
                     Some((e, f)) => (e, Some(std::path::Path::new(f.trim()))),
                     None => (rest, None),
                 };
-                let scene = self.scene(&format!("    output {VALUE} =\n{expr}"))?;
+                let scene = self.scene(typed, expr, &[])?;
                 let out = scene.bind().forward().map_err(|e| self.render(e))?;
                 let f = scene.ir();
                 let o = &f.outputs[0];
@@ -615,7 +506,7 @@ impl Repl {
                         .unwrap_or_default();
                     return Err(format!("error: the session defines no `{name}`{hint} (:defs lists them)\n"));
                 };
-                if let Err(e) = self.compile(&smaller.source(None, "")) {
+                if let Err(e) = self.compile(&smaller.source(None, typed, &[])) {
                     return Err(format!("error: `{name}` is still used; forget what uses it first. Without it:\n{e}"));
                 }
                 self.session = smaller;
