@@ -7,12 +7,13 @@ use crate::{DataArgs, PredictArgs, ScheduleArg, TrainArgs, TrainOptimizerArg};
 use gwml::runtime::checkpoint;
 use gwml::runtime::dataset::{self, Array, Dataset};
 use gwml::runtime::optim::{Method, OptimConfig, Schedule};
-use gwml::runtime::train::{EpochReport, TrainOptions, Trainer};
+use gwml::runtime::train::{EpochReport, Group, TrainOptions, Trainer};
 use gwml::{Model, Value};
 use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
 use gwml_lab::synth::{bursts, glitches_with, BurstOptions, GlitchOptions, CENTRED, GLITCH_CLASSES};
 
+use crate::cluster::World;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use std::time::Instant;
@@ -23,6 +24,9 @@ fn read_dataset(path: &Path) -> Result<Dataset, String> {
 
 /// `gwml train`.
 pub fn train(a: TrainArgs) -> Result<(), String> {
+    let world = World::new(a.mpi)?;
+    // Other ranks train in step with rank 0, which alone prints and writes.
+    let quiet = a.quiet || !world.is_root();
     let model = Model::from_file(&a.file).map_err(render)?;
     let scene = model.scene_with(a.scene.as_deref(), options(a.knobs)?).map_err(render)?;
     let train = read_dataset(&a.data)?;
@@ -55,12 +59,16 @@ pub fn train(a: TrainArgs) -> Result<(), String> {
         checkpoint_dir: a.checkpoint.clone(),
     };
     let mut trainer = Trainer::new(&scene, opts).map_err(render)?;
+    let sum = |values: &mut [f64]| world.sum(values);
+    let group = Group { rank: world.rank(), size: world.size(), sum: &sum };
     if a.resume {
         let last = a.checkpoint.as_ref().expect("checked above").join("last.safetensors");
         trainer.resume(&last).map_err(render)?;
-        eprintln!("resumed from {} after epoch {}", last.display(), trainer.epoch());
+        if world.is_root() {
+            eprintln!("resumed from {} after epoch {}", last.display(), trainer.epoch());
+        }
     }
-    let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(batches_per_epoch) };
+    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(batches_per_epoch) };
     bar.set_style(
         ProgressStyle::with_template("epoch {msg} [{bar:30}] {pos}/{len} batches, {per_sec}, eta {eta}")
             .map_err(|e| format!("error: {e}"))?
@@ -71,7 +79,8 @@ pub fn train(a: TrainArgs) -> Result<(), String> {
     let first_epoch = trainer.epoch() + 1;
     let epochs_done = std::cell::Cell::new(0usize);
     let reports = trainer
-        .fit(
+        .fit_in(
+            (world.size() > 1).then_some(&group),
             &train,
             val.as_ref(),
             |done, total| {
@@ -84,13 +93,16 @@ pub fn train(a: TrainArgs) -> Result<(), String> {
             |r| {
                 bar.finish_and_clear();
                 bar.reset();
-                if !a.quiet {
+                if !quiet {
                     eprintln!("{}  ({:.1} s)", epoch_line(r, epochs), t0.elapsed().as_secs_f64());
                 }
                 epochs_done.set(epochs_done.get() + 1);
             },
         )
         .map_err(render)?;
+    if !world.is_root() {
+        return Ok(());
+    }
     if reports.is_empty() {
         println!("nothing to do: {} of {} epochs were already done", trainer.epoch(), a.epochs);
         return Ok(());
@@ -111,6 +123,10 @@ pub fn train(a: TrainArgs) -> Result<(), String> {
             dir.join("best.safetensors").display()
         );
     }
+    if let Some(path) = &a.history {
+        std::fs::write(path, history_csv(&reports)).map_err(|e| format!("error: cannot write {}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
     if let Some(path) = &a.plot {
         let xs: Vec<f64> = reports.iter().map(|r| r.epoch as f64).collect();
         let train_loss: Vec<f64> = reports.iter().map(|r| r.train_loss).collect();
@@ -119,6 +135,24 @@ pub fn train(a: TrainArgs) -> Result<(), String> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The loss curve as CSV; empty fields where a metric does not exist.
+fn history_csv(reports: &[EpochReport]) -> String {
+    let opt = |x: Option<f64>| x.map_or(String::new(), |v| format!("{v:e}"));
+    let mut out = String::from("epoch,train_loss,train_accuracy,val_loss,val_accuracy,lr\n");
+    for r in reports {
+        out += &format!(
+            "{},{:e},{},{},{},{:e}\n",
+            r.epoch,
+            r.train_loss,
+            opt(r.train_accuracy),
+            opt(r.val.map(|m| m.loss)),
+            opt(r.val.and_then(|m| m.accuracy)),
+            r.lr
+        );
+    }
+    out
 }
 
 fn epoch_line(r: &EpochReport, epochs: usize) -> String {

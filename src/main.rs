@@ -1,5 +1,6 @@
 //! The `gwml` command-line tool.
 
+mod cluster;
 mod commands;
 mod compare;
 mod explain;
@@ -333,9 +334,20 @@ pub struct TrainArgs {
     /// Plot training and validation loss per epoch to a PNG.
     #[arg(long, value_name = "PATH.png")]
     pub plot: Option<PathBuf>,
+    /// Write the loss curve as CSV, one row per epoch (epoch, train_loss,
+    /// train_accuracy, val_loss, val_accuracy, lr; values in full precision).
+    #[arg(long, value_name = "PATH.csv")]
+    pub history: Option<PathBuf>,
     /// No progress bar or per-epoch lines (they go to standard error).
     #[arg(long, short)]
     pub quiet: bool,
+    /// Run as one rank of an MPI job (`mpirun -n N gwml train --mpi ...`):
+    /// data-parallel, each rank computes its share of every batch and the
+    /// gradients are summed over ranks (an allreduce) before each step, so
+    /// N ranks at --batch B follow one process at --batch B. Rank 0 prints
+    /// and writes checkpoints. Needs gwml built with `--features mpi`.
+    #[arg(long)]
+    pub mpi: bool,
     #[command(flatten)]
     pub knobs: KnobArgs,
 }
@@ -556,6 +568,8 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // An empty message: already reported (by MPI rank 0).
+        Err(msg) if msg.is_empty() => ExitCode::FAILURE,
         Err(msg) => {
             eprint!("{msg}");
             if !msg.ends_with('\n') {

@@ -145,6 +145,52 @@ fn scanning_in_small_blocks_finds_what_one_block_finds() {
     assert!((blocks.len() as f64 - whole.len() as f64).abs() <= 0.15 * whole.len() as f64, "{whole:?} vs {blocks:?}");
 }
 
+/// `--resume`: a scan killed (SIGKILL) after its first finished block is
+/// rerun with only the missing blocks and writes exactly what an
+/// uninterrupted scan writes; parts of a scan with other settings are
+/// refused.
+#[test]
+fn a_killed_scan_resumes_with_the_missing_blocks_only() {
+    let file = strain("resume.hdf5", &["--duration", "224", "--seed", "4", "--glitch-rate", "10"]);
+    let whole = temp("resume-whole.csv").display().to_string();
+    let out = temp("resume.csv").display().to_string();
+    let args = |path: &str| -> Vec<String> {
+        ["scan", &file, "--no-classify", "--block", "64", "--threads", "1", "--out", path].iter().map(|s| s.to_string()).collect()
+    };
+    let o = gwml(&args(&whole).iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let parts = PathBuf::from(format!("{out}.parts"));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gwml")).args(args(&out)).arg("--resume").spawn().expect("gwml runs");
+    let started = std::time::Instant::now();
+    let finished = || {
+        std::fs::read_dir(&parts)
+            .map_or(0, |d| d.filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().starts_with("block-")).count())
+    };
+    while finished() == 0 && started.elapsed().as_secs() < 300 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().expect("SIGKILL");
+    child.wait().unwrap();
+    let done = finished();
+    assert!(done >= 1 && !Path::new(&out).exists(), "killed after {done} blocks, before writing the output");
+    let refused = gwml(&[args(&out).iter().map(String::as_str).collect::<Vec<_>>(), vec!["--resume", "--snr-threshold", "9"]].concat());
+    fails_with(&refused, "finished blocks of another scan");
+    let o = gwml(&[args(&out).iter().map(String::as_str).collect::<Vec<_>>(), vec!["--resume"]].concat());
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains(&format!("resuming: {done} of ")), "{stdout}");
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&whole).unwrap(), "the resumed scan writes what one run writes");
+    assert!(!parts.exists(), "the parts are removed once the output is written");
+}
+
+/// Without the `mpi` feature, `--mpi` says how to get it.
+#[cfg(not(feature = "mpi"))]
+#[test]
+fn mpi_needs_the_feature() {
+    let out = gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--mpi"]);
+    fails_with(&out, "--features mpi");
+}
+
 /// `gwml qscan`: the loudest tile of every duration's image is on the
 /// glitch, the PNG is written, and bad times are one-line errors.
 #[test]

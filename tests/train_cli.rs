@@ -43,11 +43,20 @@ fn data_train_resume_and_predict() {
     let (ok, out, err) = gwml(&train_args("1"));
     assert!(ok, "{err}");
     assert!(out.contains("epoch 1/1") && out.contains("val loss") && out.contains("cnn.k2: 1024 values"), "{out}");
-    let (ok, out, err) = gwml(&[train_args("2"), vec!["--resume", "--plot", &p("curves.png")]].concat());
+    let (ok, out, err) = gwml(&[train_args("2"), vec!["--resume", "--plot", &p("curves.png"), "--history", &p("curve.csv")]].concat());
     assert!(ok, "{err}");
     assert!(err.contains("resumed from") && err.contains("after epoch 1"), "{err}");
     assert!(out.contains("epoch 2/2"), "{out}");
     assert!(Path::new(&p("curves.png")).exists());
+    // The loss curve of the epochs run, in full precision.
+    let curve = std::fs::read_to_string(p("curve.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = curve.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(curve.lines().next(), Some("epoch,train_loss,train_accuracy,val_loss,val_accuracy,lr"), "{curve}");
+    assert_eq!(rows.len(), 1, "one epoch after resuming: {curve}");
+    assert_eq!(rows[0][0], "2");
+    let printed = out.lines().find(|l| l.starts_with("epoch 2/2")).unwrap();
+    let loss: f64 = rows[0][1].parse().unwrap();
+    assert!(printed.contains(&format!("train loss {loss:.4e}")), "{printed} vs {loss:e}");
     // Predict on the first rows of the validation set.
     let x: Vec<f64> = Dataset::read(Path::new(&val)).unwrap().arrays["x"].data[..3 * 256].to_vec();
     let xs = gwml::runtime::dataset::Array::new(vec![3, 256], x).unwrap();

@@ -102,6 +102,35 @@ pub struct Trainer<'s> {
     pool: rayon::ThreadPool,
 }
 
+/// This process's place among processes that train one model together:
+/// each computes its share of every batch, and `sum` adds a vector over all
+/// of them (an allreduce), so every process takes the same step.
+pub struct Group<'g> {
+    /// This process, from 0.
+    pub rank: usize,
+    /// Number of processes.
+    pub size: usize,
+    /// Sums `values` elementwise over the processes, in place, on all of them.
+    pub sum: &'g dyn Fn(&mut [f64]),
+}
+
+impl Group<'_> {
+    /// This process's contiguous part of `indices`.
+    fn share<'i>(&self, indices: &'i [usize]) -> &'i [usize] {
+        &indices[indices.len() * self.rank / self.size..indices.len() * (self.rank + 1) / self.size]
+    }
+
+    /// `part` summed over the processes.
+    fn reduce(&self, part: &mut Partial) {
+        let mut flat = Vec::with_capacity(3 + part.grad_sum.len());
+        flat.extend([part.loss_sum, part.correct as f64, part.counted as f64]);
+        flat.extend(&part.grad_sum);
+        (self.sum)(&mut flat);
+        (part.loss_sum, part.correct, part.counted) = (flat[0], flat[1] as usize, flat[2] as usize);
+        part.grad_sum.copy_from_slice(&flat[3..]);
+    }
+}
+
 impl<'s> Trainer<'s> {
     /// Prepares to train `scene` from its initial weights and param defaults.
     pub fn new(scene: &'s Scene, opts: TrainOptions) -> Result<Trainer<'s>, Error> {
@@ -183,6 +212,23 @@ impl<'s> Trainer<'s> {
         &mut self,
         train: &Dataset,
         val: Option<&Dataset>,
+        on_batch: impl FnMut(usize, usize),
+        on_epoch: impl FnMut(&EpochReport),
+    ) -> Result<Vec<EpochReport>, Error> {
+        self.fit_in(None, train, val, on_batch, on_epoch)
+    }
+
+    /// [`Trainer::fit`] as one of the processes of `group`, which share
+    /// every batch and validation pass: each computes its contiguous part,
+    /// the partial losses, counts and gradients are summed over all (an
+    /// allreduce) and all take the same step, so `size` processes at batch
+    /// B follow one process at batch B up to summation order. Only rank 0
+    /// writes checkpoints.
+    pub fn fit_in(
+        &mut self,
+        group: Option<&Group<'_>>,
+        train: &Dataset,
+        val: Option<&Dataset>,
         mut on_batch: impl FnMut(usize, usize),
         mut on_epoch: impl FnMut(&EpochReport),
     ) -> Result<Vec<EpochReport>, Error> {
@@ -200,7 +246,7 @@ impl<'s> Trainer<'s> {
             let (mut loss_sum, mut correct, mut counted, mut lr) = (0.0, 0usize, 0usize, self.opts.optim.lr);
             let batches = n.div_ceil(self.opts.batch);
             for (bi, batch) in order.chunks(self.opts.batch).enumerate() {
-                let step = self.batch_step(&train_data, batch)?;
+                let step = self.batch_step(&train_data, batch, group)?;
                 loss_sum += step.loss_sum;
                 correct += step.correct;
                 counted += step.counted;
@@ -211,7 +257,7 @@ impl<'s> Trainer<'s> {
                 on_batch(bi + 1, batches);
             }
             self.epoch += 1;
-            let val_metrics = val_data.as_ref().map(|v| self.evaluate_examples(v)).transpose()?;
+            let val_metrics = val_data.as_ref().map(|v| self.evaluate_examples(v, group)).transpose()?;
             let mut stop = false;
             let mut improved = false;
             if let Some(m) = val_metrics {
@@ -232,7 +278,8 @@ impl<'s> Trainer<'s> {
                 lr,
                 stop,
             };
-            if let Some(dir) = &self.opts.checkpoint_dir {
+            let writer = group.is_none_or(|g| g.rank == 0);
+            if let Some(dir) = self.opts.checkpoint_dir.as_ref().filter(|_| writer) {
                 let ck = self.checkpoint();
                 checkpoint::save(&dir.join("last.safetensors"), &ck)?;
                 if improved || val_metrics.is_none() {
@@ -251,19 +298,25 @@ impl<'s> Trainer<'s> {
     /// Loss and accuracy of the current weights over `data` (forward only).
     pub fn evaluate(&self, data: &Dataset) -> Result<Metrics, Error> {
         let ex = Examples::new(self.scene.ir(), data, &self.opts)?;
-        self.evaluate_examples(&ex)
+        self.evaluate_examples(&ex, None)
     }
 
-    fn evaluate_examples(&self, ex: &Examples<'_>) -> Result<Metrics, Error> {
+    fn evaluate_examples(&self, ex: &Examples<'_>, group: Option<&Group<'_>>) -> Result<Metrics, Error> {
         let all: Vec<usize> = (0..ex.len).collect();
-        let parts = self.run_chunks(ex, &all, false)?;
+        let parts = self.run_chunks(ex, group.map_or(&all[..], |g| g.share(&all)), false)?;
         let (loss, correct, counted) = parts.iter().fold((0.0, 0, 0), |(l, c, k), p| (l + p.loss_sum, c + p.correct, k + p.counted));
+        let mut total = Partial { loss_sum: loss, correct, counted, grad_sum: Vec::new() };
+        if let Some(g) = group {
+            g.reduce(&mut total);
+        }
+        let Partial { loss_sum: loss, correct, counted, .. } = total;
         Ok(Metrics { loss: loss / ex.len.max(1) as f64, accuracy: (counted > 0).then(|| correct as f64 / counted as f64) })
     }
 
-    /// Value and gradient summed over the examples `batch`.
-    fn batch_step(&self, ex: &Examples<'_>, batch: &[usize]) -> Result<Partial, Error> {
-        let parts = self.run_chunks(ex, batch, true)?;
+    /// Value and gradient summed over the examples `batch` (over the
+    /// group's processes, each computing its share).
+    fn batch_step(&self, ex: &Examples<'_>, batch: &[usize], group: Option<&Group<'_>>) -> Result<Partial, Error> {
+        let parts = self.run_chunks(ex, group.map_or(batch, |g| g.share(batch)), true)?;
         let mut total = Partial { loss_sum: 0.0, correct: 0, counted: 0, grad_sum: vec![0.0; self.values.len()] };
         for p in parts {
             total.loss_sum += p.loss_sum;
@@ -272,6 +325,9 @@ impl<'s> Trainer<'s> {
             for (t, g) in total.grad_sum.iter_mut().zip(&p.grad_sum) {
                 *t += g;
             }
+        }
+        if let Some(g) = group {
+            g.reduce(&mut total);
         }
         Ok(total)
     }

@@ -6,13 +6,15 @@
 //! method, [`qtransform`] tiles whitened data in time, frequency and Q,
 //! [`triggers`] clusters loud tiles into triggers, [`classifier`] labels
 //! them with a trained gwml model, and [`scan`] runs the stages over a
-//! long stretch of strain in parallel chunks.
+//! long stretch of strain in parallel chunks; [`record`] writes a scan's
+//! report as JSON and reads it back exactly (resuming, MPI).
 
 pub mod classifier;
 pub mod gwosc;
 pub mod psd;
 pub mod qimage;
 pub mod qtransform;
+pub mod record;
 pub mod scan;
 pub mod series;
 pub mod triggers;

@@ -63,6 +63,18 @@ pub struct ScanOptions {
     pub cluster_gap: f64,
 }
 
+impl ScanOptions {
+    /// The margin (s) at each end of a segment that is not searched.
+    pub fn margin(&self) -> f64 {
+        self.pad
+    }
+
+    /// Shortest good-data segment worth whitening, in seconds.
+    pub fn min_segment(&self) -> f64 {
+        2.0 * self.pad + (2.0 * self.fft_length).max(8.0)
+    }
+}
+
 impl Default for ScanOptions {
     fn default() -> Self {
         ScanOptions {
@@ -195,14 +207,9 @@ impl Scanner {
         self.classifier.as_ref()
     }
 
-    /// The margin (s) at each end of a segment that is not searched.
-    pub fn margin(&self) -> f64 {
-        self.options.pad
-    }
-
-    /// Shortest good-data segment worth whitening, in seconds.
-    pub fn min_segment(&self) -> f64 {
-        2.0 * self.options.pad + (2.0 * self.options.fft_length).max(8.0)
+    /// The settings it scans with.
+    pub fn options(&self) -> &ScanOptions {
+        &self.options
     }
 
     /// Scans one series; `progress` is told the seconds of each chunk done.
@@ -212,7 +219,7 @@ impl Scanner {
 
     /// Scans a block of a longer stretch: an end marked open continues in a
     /// neighbouring block that overlaps this one by twice the margin
-    /// ([`Scanner::margin`]), so its margin is searched there and is not
+    /// ([`ScanOptions::margin`]), so its margin is searched there and is not
     /// reported as skipped. Merge the blocks' rows with [`merge_rows`].
     pub fn scan_block(&self, series: &Series, open: (bool, bool), progress: &(dyn Fn(f64) + Sync)) -> Result<Report, Error> {
         let o = &self.options;
@@ -230,7 +237,7 @@ impl Scanner {
                 )));
             }
         }
-        let (segments, mut skipped) = good_segments(series, self.min_segment());
+        let (segments, mut skipped) = good_segments(series, o.min_segment());
         let rate = fs as usize;
         let pad = o.pad as usize * rate;
         let mut chunks = Vec::new();

@@ -1,26 +1,31 @@
 //! `gwml data strain` and `gwml scan`: the command-line shell over
 //! `gwml_lab::strain` (simulated strain) and `gwml_strain` (the scan).
 
+use crate::cluster::World;
 use crate::commands::render;
 use crate::explain::Explained;
-use crate::strain_input::{Source, StrainInput, StrainRun as Run};
+use crate::strain_input::{Source, StrainInput, StrainRun, StrainRun as Run};
+use blocks::{deal, decode, encode, merge, plan_blocks, scan_blocks, Parts};
 use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate_with, write_truth, NoiseCurve, StrainOptions};
 use gwml_lab::synth::{real_fits::RealShapes, GlitchClass};
 use gwml_strain::classifier::{Classifier, Manifest};
 use gwml_strain::gwosc::{self, WriteOptions};
-use gwml_strain::scan::{merge_rows, Report, ScanOptions, Scanner};
+use gwml_strain::scan::{Report, ScanOptions, Scanner};
 use gwml_strain::series::{plan, SkipReason, Span};
 use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The shipped classifier, embedded so `gwml scan` works from anywhere.
-const SHIPPED_MANIFEST: &str = include_str!("../models/glitch-classifier/glitch-classifier.json");
-const SHIPPED_MODEL: &str = include_str!("../lab/models/glitch/template_net.gw");
-const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../models/glitch-classifier/template_net.safetensors");
+mod blocks;
+
+const SHIPPED_MANIFEST: &str = include_str!("../../models/glitch-classifier/glitch-classifier.json");
+const SHIPPED_MODEL: &str = include_str!("../../lab/models/glitch/template_net.gw");
+const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../../models/glitch-classifier/template_net.safetensors");
 const SHIPPED_PATH: &str = "models/glitch-classifier/glitch-classifier.json";
 
 #[derive(clap::Args)]
@@ -192,6 +197,63 @@ pub struct ScanArgs {
     /// Bayes factors and params to each row. About 0.7 s per trigger.
     #[arg(long)]
     pub explain: bool,
+    /// Record each finished block in OUT.parts/ beside the output; a rerun
+    /// with the same files and settings then scans only the blocks missing
+    /// (after a crash or a kill) and gives the same output. The directory is
+    /// removed once the output is written.
+    #[arg(long)]
+    pub resume: bool,
+    /// Run as one rank of an MPI job (`mpirun -n N gwml scan --mpi ...`):
+    /// the blocks are dealt to the ranks, rank 0 gathers the triggers and
+    /// writes them, the same as one process writes. Finished blocks are
+    /// recorded as with --resume (OUT.parts/ must be on a filesystem every
+    /// rank sees). Needs gwml built with `--features mpi`.
+    #[arg(long)]
+    pub mpi: bool,
+}
+
+/// The inputs opened and the work planned, before scanning.
+struct Opened {
+    sources: Vec<Source>,
+    /// Runs of consecutive inputs (indices into `sources`).
+    runs: Vec<Vec<usize>>,
+    /// Gaps between files.
+    gaps: Vec<gwml_strain::series::Skipped>,
+    blocks: Vec<blocks::Block>,
+    /// Where finished blocks are recorded (--resume, --mpi).
+    parts: Option<Parts>,
+    /// Blocks recorded as finished by an earlier run.
+    done: BTreeMap<usize, Report>,
+    /// Blocks to scan, by every rank.
+    todo: Vec<usize>,
+    /// Blocks this rank scans.
+    mine: Vec<usize>,
+    /// The first of `mine`, read.
+    first: Option<gwml_strain::series::Series>,
+}
+
+/// Rank 0's plan of blocks still to do, checked on every rank; an error on
+/// rank 0 stops every rank (the others quietly: rank 0 reports it).
+fn agree(world: &World, opened: Result<Opened, String>) -> Result<Opened, String> {
+    if world.size() == 1 {
+        return opened;
+    }
+    let mine = match &opened {
+        Ok(o) => serde_json::to_vec(&o.todo).expect("JSON values serialise"),
+        Err(_) => Vec::new(),
+    };
+    let roots = world.broadcast(mine.clone());
+    if roots.is_empty() {
+        return Err(if world.is_root() { opened.err().unwrap_or_default() } else { String::new() });
+    }
+    let opened = opened?;
+    if roots != mine {
+        return Err(format!(
+            "error: rank {} sees other finished blocks than rank 0: the parts directory must be on a filesystem every rank shares",
+            world.rank()
+        ));
+    }
+    Ok(opened)
 }
 
 /// The classifier the arguments ask for.
@@ -224,9 +286,28 @@ fn classifier(a: &ScanArgs) -> Result<Option<Classifier>, String> {
     Ok(Some(c))
 }
 
+/// What identifies a scan's results: the files (path, size, modification
+/// time) and every setting that changes a trigger. Parts recorded under
+/// another fingerprint are not merged with this scan's.
+fn fingerprint(a: &ScanArgs, options: &ScanOptions) -> String {
+    let mut out = String::new();
+    for path in &a.input.strain {
+        let meta = std::fs::metadata(path).ok();
+        let modified = meta.as_ref().and_then(|m| m.modified().ok()).and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+        let _ = write!(out, "{} {} {:?}; ", path.display(), meta.map_or(0, |m| m.len()), modified);
+    }
+    let _ = write!(
+        out,
+        "rate {:?} gps {:?} ifo {} block {} options {options:?} model {:?} weights {:?} classify {}",
+        a.input.sample_rate, a.input.gps_start, a.input.ifo, a.block, a.model, a.weights, !a.no_classify
+    );
+    out
+}
+
 /// `gwml scan`.
 pub fn scan(a: ScanArgs) -> Result<(), String> {
     let started = Instant::now();
+    let world = World::new(a.mpi)?;
     let format = match a.out.extension().and_then(|e| e.to_str()) {
         Some("csv") => "csv",
         Some("json") => "json",
@@ -242,83 +323,74 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
         fft_length: a.fft_length,
         ..ScanOptions::default()
     };
-    // Open the files and read the first block while the classifier and the
-    // whitening scene for 4096 Hz data (GWOSC's usual rate) compile.
+    let record = a.resume || a.mpi;
+    // Open the files, plan the blocks, find those already recorded and read
+    // this process's first one while the classifier and the whitening scene
+    // for 4096 Hz data (GWOSC's usual rate) compile.
+    let (rank, ranks, root) = (world.rank(), world.size(), world.is_root());
     let (opened, scanner) = std::thread::scope(|scope| {
-        let opening = scope.spawn(|| -> Result<_, String> {
+        let opening = scope.spawn(|| -> Result<Opened, String> {
             let sources = a.input.open()?;
             let spans: Vec<Span> = sources.iter().map(Source::span).collect();
             let (runs, gaps) = plan(&spans).map_err(|e| format!("error: {e}"))?;
-            let first = Run::new(&sources, &runs[0]).block(0, (a.block * spans[runs[0][0]].sample_rate) as usize)?;
-            Ok((sources, runs, gaps, first))
+            let run_spans: Vec<Span> = runs.iter().map(|r| StrainRun::new(&sources, r).span).collect();
+            let blocks = plan_blocks(&run_spans, a.block, &options);
+            let (parts, done) = match record {
+                true => {
+                    let parts = Parts::open(&a.out, &fingerprint(&a, &options), blocks.len(), root)?;
+                    let done = parts.finished(blocks.len())?;
+                    (Some(parts), done)
+                }
+                false => (None, BTreeMap::new()),
+            };
+            let todo: Vec<usize> = (0..blocks.len()).filter(|i| !done.contains_key(i)).collect();
+            let mine = deal(&todo, rank, ranks);
+            let first = match mine.first() {
+                Some(&i) => Some(StrainRun::new(&sources, &runs[blocks[i].run]).block(blocks[i].start, blocks[i].length)?),
+                None => None,
+            };
+            Ok(Opened { sources, runs, gaps, blocks, parts, done, todo, mine, first })
         });
-        let scanner = classifier(&a).and_then(|c| Scanner::new(options, c).map_err(|e| format!("error: {e}")));
+        let scanner = classifier(&a).and_then(|c| Scanner::new(options.clone(), c).map_err(|e| format!("error: {e}")));
         if let Ok(s) = &scanner {
             let _ = s.warm_up(a.input.sample_rate.unwrap_or(4096.0));
         }
         (opening.join().expect("the opening thread does not panic"), scanner)
     });
-    let ((sources, runs, mut gaps, first), scanner) = (opened?, scanner?);
-    let mut first = Some(first);
+    // Every rank must scan the same plan: rank 0's list of blocks to do (or
+    // its error) goes to all, and a rank that sees another list stops.
+    let Opened { sources, runs, mut gaps, blocks, parts, done, todo, mine, first } = agree(&world, opened)?;
+    let scanner = scanner?;
     let setup_seconds = started.elapsed().as_secs_f64();
-    let spans: Vec<Span> = sources.iter().map(Source::span).collect();
     let runs: Vec<Run> = runs.iter().map(|r| Run::new(&sources, r)).collect();
     let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build().map_err(|e| format!("error: {e}"))?;
-    let total: f64 = spans.iter().map(|s| s.samples as f64 / s.sample_rate).sum();
-    let bar = ProgressBar::new(total.round() as u64);
+    let total: f64 = sources.iter().map(|s| s.span()).map(|s| s.samples as f64 / s.sample_rate).sum();
+    let mine_seconds: f64 = mine.iter().map(|&i| blocks[i].length as f64 / runs[blocks[i].run].span.sample_rate).sum();
+    let bar = if world.is_root() { ProgressBar::new(mine_seconds.round() as u64) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("scan [{bar:30}] {pos}/{len} s of data, {per_sec} data-seconds, eta {eta}").expect("a valid template"),
     );
-    let mut reports = Vec::new();
-    for run in &runs {
-        // Blocks overlapping by twice the margin, so every margin but the
-        // run's own ends is searched in one of them; the next block is read
-        // while this one is scanned.
-        let fs = run.span.sample_rate;
-        let block = (a.block * fs) as usize;
-        let overlap = (2.0 * scanner.margin() * fs) as usize;
-        let n = run.span.samples;
-        let mut starts = vec![0];
-        while starts[starts.len() - 1] + block < n {
-            starts.push(starts[starts.len() - 1] + block - overlap);
-        }
-        // No last block too short to whiten: the one before reaches the end.
-        if starts.len() > 1 && ((n - starts[starts.len() - 1]) as f64) < scanner.min_segment() * fs + overlap as f64 {
-            starts.pop();
-        }
-        let length = |k: usize| starts.get(k + 1).map_or(n - starts[k], |next| next + overlap - starts[k]);
-        // The first block of the first run was read during set-up (at full
-        // length or the run's, which is what `length(0)` is then too).
-        let mut next = Some(match first.take().filter(|b| b.samples.len() == length(0)) {
-            Some(block) => block,
-            None => run.block(starts[0], length(0))?,
-        });
-        for k in 0..starts.len() {
-            let series = next.take().expect("read ahead");
-            let open = (k > 0, k + 1 < starts.len());
-            let (report, ahead) = std::thread::scope(|scope| {
-                let ahead = starts.get(k + 1).map(|&s| {
-                    let len = length(k + 1);
-                    scope.spawn(move || run.block(s, len))
-                });
-                let report = pool.install(|| scanner.scan_block(&series, open, &|seconds| bar.inc(seconds.round() as u64)));
-                (report, ahead.map(|h| h.join().expect("the reading thread does not panic")))
-            });
-            reports.push(report.map_err(|e| format!("error: {e}"))?);
-            next = ahead.transpose()?;
-        }
+    if world.size() > 1 && world.is_root() {
+        println!("MPI: {} ranks share {} of {} blocks ({} finished before)", world.size(), todo.len(), blocks.len(), done.len());
+    } else if !done.is_empty() {
+        println!("resuming: {} of {} blocks finished before, {} to do", done.len(), blocks.len(), todo.len());
     }
+    let mut recorder = |index: usize, report: &Report| parts.as_ref().map_or(Ok(()), |p| p.record(index, report));
+    let scanned = scan_blocks(&runs, &blocks, &mine, first, (&scanner, &pool), &|seconds| bar.inc(seconds.round() as u64), &mut recorder)?;
     bar.finish_and_clear();
-    let mut report = reports.remove(0);
-    for r in reports {
-        let (a, b) = (&mut report.stage_seconds, r.stage_seconds);
-        (a.psd, a.whiten, a.tiles, a.classify) = (a.psd + b.psd, a.whiten + b.whiten, a.tiles + b.tiles, a.classify + b.classify);
-        report.rows.extend(r.rows);
-        report.scanned_seconds += r.scanned_seconds;
-        report.skipped.extend(r.skipped);
+    let Some(gathered) = world.gather(encode(&scanned)) else {
+        // Other ranks are done: rank 0 writes.
+        return Ok(());
+    };
+    let mut reports: BTreeMap<usize, Report> = done;
+    for bytes in gathered {
+        reports.extend(decode(&bytes)?);
     }
-    report.rows = merge_rows(std::mem::take(&mut report.rows), ScanOptions::default().cluster_gap);
+    if reports.len() != blocks.len() {
+        return Err(format!("error: {} of {} blocks came back from the ranks", reports.len(), blocks.len()));
+    }
+    let mut report = merge(reports.into_values().collect(), options.cluster_gap).expect("every run has a block");
     report.skipped.append(&mut gaps);
     report.skipped.sort_by(|x, y| x.gps_start.total_cmp(&y.gps_start));
     let classes: Vec<String> = scanner.classifier().map_or(Vec::new(), |c| c.manifest.classes.clone());
@@ -335,6 +407,9 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     };
     let text = if format == "csv" { triggers_csv(&report, &classes, &explained) } else { triggers_json(&report, &classes, &explained) };
     std::fs::write(&a.out, text).map_err(|e| format!("error: cannot write {}: {e}", a.out.display()))?;
+    if let Some(parts) = &parts {
+        parts.remove();
+    }
     if let Some(dir) = &a.plots {
         plot_triggers(dir, &report, &classes)?;
     }
