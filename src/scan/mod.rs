@@ -4,8 +4,9 @@
 use crate::cluster::World;
 use crate::commands::render;
 use crate::explain::Explained;
-use crate::strain_input::{Source, StrainInput, StrainRun, StrainRun as Run};
-use blocks::{deal, decode, encode, merge, plan_blocks, scan_blocks, Parts};
+use crate::strain_input::StrainInput;
+use gwml_strain::blocks::{self, deal, decode, encode, merge, plan_blocks, scan_blocks, Parts};
+use gwml_strain::input::{Source, StrainRun};
 use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate_with, write_truth, NoiseCurve, StrainOptions};
@@ -20,13 +21,6 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The shipped classifier, embedded so `gwml scan` works from anywhere.
-mod blocks;
-
-const SHIPPED_MANIFEST: &str = include_str!("../../models/glitch-classifier/glitch-classifier.json");
-const SHIPPED_MODEL: &str = include_str!("../../lab/models/glitch/template_net.gw");
-const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../../models/glitch-classifier/template_net.safetensors");
-const SHIPPED_PATH: &str = "models/glitch-classifier/glitch-classifier.json";
 
 #[derive(clap::Args)]
 pub struct StrainArgs {
@@ -265,9 +259,7 @@ fn classifier(a: &ScanArgs) -> Result<Option<Classifier>, String> {
     let c = match (&a.model, &a.weights) {
         (None, Some(_)) => return Err("error: --weights needs --model (the .gw file they belong to)".into()),
         (None, None) => {
-            let manifest = Manifest::parse(SHIPPED_MANIFEST, Path::new(SHIPPED_PATH)).map_err(fail)?;
-            let weights = gwml::runtime::checkpoint::parse(SHIPPED_WEIGHTS, "the shipped classifier's weights").map_err(render)?;
-            Classifier::build(manifest, SHIPPED_MODEL, weights).map_err(fail)?
+            Classifier::shipped().map_err(fail)?
         }
         (Some(m), w) if m.extension().is_some_and(|e| e == "json") => {
             if w.is_some() {
@@ -277,7 +269,7 @@ fn classifier(a: &ScanArgs) -> Result<Option<Classifier>, String> {
         }
         (Some(m), Some(w)) => {
             // A bare model: the shipped manifest's conventions (classes, rate, band).
-            let mut manifest = Manifest::parse(SHIPPED_MANIFEST, Path::new(SHIPPED_PATH)).map_err(fail)?;
+            let mut manifest = Manifest::shipped().map_err(fail)?;
             (manifest.model, manifest.weights) = (m.clone(), w.clone());
             Classifier::load(manifest).map_err(fail)?
         }
@@ -308,6 +300,7 @@ fn fingerprint(a: &ScanArgs, options: &ScanOptions) -> String {
 pub fn scan(a: ScanArgs) -> Result<(), String> {
     let started = Instant::now();
     let world = World::new(a.mpi)?;
+    let fail = |e: gwml_strain::Error| format!("error: {e}");
     let format = match a.out.extension().and_then(|e| e.to_str()) {
         Some("csv") => "csv",
         Some("json") => "json",
@@ -337,8 +330,8 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
             let blocks = plan_blocks(&run_spans, a.block, &options);
             let (parts, done) = match record {
                 true => {
-                    let parts = Parts::open(&a.out, &fingerprint(&a, &options), blocks.len(), root)?;
-                    let done = parts.finished(blocks.len())?;
+                    let parts = Parts::open(&a.out, &fingerprint(&a, &options), blocks.len(), root).map_err(fail)?;
+                    let done = parts.finished(blocks.len()).map_err(fail)?;
                     (Some(parts), done)
                 }
                 false => (None, BTreeMap::new()),
@@ -346,7 +339,7 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
             let todo: Vec<usize> = (0..blocks.len()).filter(|i| !done.contains_key(i)).collect();
             let mine = deal(&todo, rank, ranks);
             let first = match mine.first() {
-                Some(&i) => Some(StrainRun::new(&sources, &runs[blocks[i].run]).block(blocks[i].start, blocks[i].length)?),
+                Some(&i) => Some(StrainRun::new(&sources, &runs[blocks[i].run]).block(blocks[i].start, blocks[i].length).map_err(fail)?),
                 None => None,
             };
             Ok(Opened { sources, runs, gaps, blocks, parts, done, todo, mine, first })
@@ -359,10 +352,10 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     });
     // Every rank must scan the same plan: rank 0's list of blocks to do (or
     // its error) goes to all, and a rank that sees another list stops.
-    let Opened { sources, runs, mut gaps, blocks, parts, done, todo, mine, first } = agree(&world, opened)?;
+    let Opened { sources, runs, gaps, blocks, parts, done, todo, mine, first } = agree(&world, opened)?;
     let scanner = scanner?;
     let setup_seconds = started.elapsed().as_secs_f64();
-    let runs: Vec<Run> = runs.iter().map(|r| Run::new(&sources, r)).collect();
+    let runs: Vec<StrainRun> = runs.iter().map(|r| StrainRun::new(&sources, r)).collect();
     let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build().map_err(|e| format!("error: {e}"))?;
     let total: f64 = sources.iter().map(|s| s.span()).map(|s| s.samples as f64 / s.sample_rate).sum();
@@ -377,7 +370,8 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
         println!("resuming: {} of {} blocks finished before, {} to do", done.len(), blocks.len(), todo.len());
     }
     let mut recorder = |index: usize, report: &Report| parts.as_ref().map_or(Ok(()), |p| p.record(index, report));
-    let scanned = scan_blocks(&runs, &blocks, &mine, first, (&scanner, &pool), &|seconds| bar.inc(seconds.round() as u64), &mut recorder)?;
+    let scanned = scan_blocks(&runs, &blocks, &mine, first, (&scanner, &pool), &|seconds| bar.inc(seconds.round() as u64), &mut recorder)
+        .map_err(fail)?;
     bar.finish_and_clear();
     let Some(gathered) = world.gather(encode(&scanned)) else {
         // Other ranks are done: rank 0 writes.
@@ -385,14 +379,12 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     };
     let mut reports: BTreeMap<usize, Report> = done;
     for bytes in gathered {
-        reports.extend(decode(&bytes)?);
+        reports.extend(decode(&bytes, "a rank").map_err(fail)?);
     }
     if reports.len() != blocks.len() {
         return Err(format!("error: {} of {} blocks came back from the ranks", reports.len(), blocks.len()));
     }
-    let mut report = merge(reports.into_values().collect(), options.cluster_gap).expect("every run has a block");
-    report.skipped.append(&mut gaps);
-    report.skipped.sort_by(|x, y| x.gps_start.total_cmp(&y.gps_start));
+    let report = merge(reports.into_values().collect(), gaps, options.cluster_gap).expect("every run has a block");
     let classes: Vec<String> = scanner.classifier().map_or(Vec::new(), |c| c.manifest.classes.clone());
     let explain_started = Instant::now();
     let explained = if a.explain {

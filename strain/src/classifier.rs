@@ -43,7 +43,20 @@ pub struct Manifest {
     pub output: String,
 }
 
+/// The shipped classifier (`models/glitch-classifier/`), embedded so a scan
+/// works from anywhere: its manifest, model source and trained weights.
+const SHIPPED_MANIFEST: &str = include_str!("../../models/glitch-classifier/glitch-classifier.json");
+const SHIPPED_MODEL: &str = include_str!("../../lab/models/glitch/template_net.gw");
+const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../../models/glitch-classifier/template_net.safetensors");
+const SHIPPED_PATH: &str = "models/glitch-classifier/glitch-classifier.json";
+
 impl Manifest {
+    /// The shipped classifier's manifest (its classes, sample rate and band
+    /// are also the conventions for a bare model given with its weights).
+    pub fn shipped() -> Result<Manifest, Error> {
+        Manifest::parse(SHIPPED_MANIFEST, Path::new(SHIPPED_PATH))
+    }
+
     /// Reads a manifest; relative paths are resolved against its folder.
     pub fn read(path: &Path) -> Result<Manifest, Error> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
@@ -119,6 +132,12 @@ pub struct Verdict {
 }
 
 impl Classifier {
+    /// The shipped classifier, compiled with its trained weights.
+    pub fn shipped() -> Result<Classifier, Error> {
+        let weights = checkpoint::parse(SHIPPED_WEIGHTS, "the shipped classifier's weights").map_err(|e| Error::Data(e.to_string()))?;
+        Classifier::build(Manifest::shipped()?, SHIPPED_MODEL, weights)
+    }
+
     /// Compiles the manifest's model and loads its weights.
     pub fn load(manifest: Manifest) -> Result<Classifier, Error> {
         let source = std::fs::read_to_string(&manifest.model).map_err(|e| Error::file(&manifest.model, format!("cannot read: {e}")))?;

@@ -1,16 +1,20 @@
 //! Detector strain in, glitch triggers out.
 //!
 //! The scan pipeline, one module per stage: [`gwosc`] reads (and writes)
-//! GWOSC HDF5 strain files, [`series`] holds a stretch of strain and
+//! GWOSC HDF5 strain files, [`input`] joins inputs into runs read a block
+//! at a time, [`series`] holds a stretch of strain and
 //! splits it at missing data, [`psd`] estimates the noise PSD by Welch's
 //! method, [`qtransform`] tiles whitened data in time, frequency and Q,
 //! [`triggers`] clusters loud tiles into triggers, [`classifier`] labels
 //! them with a trained gwml model, and [`scan`] runs the stages over a
-//! long stretch of strain in parallel chunks; [`record`] writes a scan's
+//! long stretch of strain in parallel chunks, [`blocks`] cuts long inputs
+//! into blocks that can be recorded, resumed and dealt out; [`record`] writes a scan's
 //! report as JSON and reads it back exactly (resuming, MPI).
 
+pub mod blocks;
 pub mod classifier;
 pub mod gwosc;
+pub mod input;
 pub mod psd;
 pub mod qimage;
 pub mod qtransform;

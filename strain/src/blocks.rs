@@ -1,5 +1,5 @@
 //! A scan in blocks: the unit of work that is read, scanned, recorded and
-//! dealt to MPI ranks.
+//! dealt to processes (MPI ranks in `gwml scan --mpi`).
 //!
 //! Each run of consecutive files is cut into blocks of `--block` seconds
 //! that overlap by twice the whitening margin, so the margin between two
@@ -9,10 +9,11 @@
 //! parts directory beside the output (`OUT.parts/`), so a rerun after a
 //! crash does only the missing ones.
 
-use crate::strain_input::StrainRun as Run;
-use gwml_strain::record::{report_from_json, report_to_json};
-use gwml_strain::scan::{merge_rows, Report, ScanOptions, Scanner};
-use gwml_strain::series::{Series, Span};
+use crate::input::{runs, Source, StrainRun as Run};
+use crate::record::{report_from_json, report_to_json};
+use crate::scan::{merge_rows, Report, ScanOptions, Scanner};
+use crate::series::{Series, Skipped, Span};
+use crate::Error;
 use serde_json::{json, Value};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -29,7 +30,7 @@ pub struct Block {
 
 impl Block {
     /// The block's samples, read from its run.
-    pub fn read(&self, runs: &[Run]) -> Result<Series, String> {
+    pub fn read(&self, runs: &[Run]) -> Result<Series, Error> {
         runs[self.run].block(self.start, self.length)
     }
 }
@@ -76,8 +77,8 @@ pub fn scan_blocks(
     first: Option<Series>,
     (scanner, pool): (&Scanner, &rayon::ThreadPool),
     progress: &(dyn Fn(f64) + Sync),
-    finished: &mut dyn FnMut(usize, &Report) -> Result<(), String>,
-) -> Result<Vec<(usize, Report)>, String> {
+    finished: &mut dyn FnMut(usize, &Report) -> Result<(), Error>,
+) -> Result<Vec<(usize, Report)>, Error> {
     let mut out = Vec::new();
     let mut next = match (first, mine.first()) {
         (Some(series), _) => Some(series),
@@ -91,7 +92,7 @@ pub fn scan_blocks(
             let report = pool.install(|| scanner.scan_block(&series, blocks[index].open, progress));
             (report, ahead.map(|h| h.join().expect("the reading thread does not panic")))
         });
-        let report = report.map_err(|e| format!("error: {e}"))?;
+        let report = report?;
         finished(index, &report)?;
         out.push((index, report));
         next = ahead.transpose()?;
@@ -100,8 +101,9 @@ pub fn scan_blocks(
 }
 
 /// The blocks' reports (in block order) as one: rows merged across block
-/// edges, skipped stretches in time order, stage times summed.
-pub fn merge(mut reports: Vec<Report>, cluster_gap: f64) -> Option<Report> {
+/// edges, skipped stretches (with the `gaps` between runs) in time order,
+/// stage times summed.
+pub fn merge(mut reports: Vec<Report>, mut gaps: Vec<Skipped>, cluster_gap: f64) -> Option<Report> {
     if reports.is_empty() {
         return None;
     }
@@ -114,7 +116,27 @@ pub fn merge(mut reports: Vec<Report>, cluster_gap: f64) -> Option<Report> {
         report.skipped.extend(r.skipped);
     }
     report.rows = merge_rows(std::mem::take(&mut report.rows), cluster_gap);
+    report.skipped.append(&mut gaps);
+    report.skipped.sort_by(|x, y| x.gps_start.total_cmp(&y.gps_start));
     Some(report)
+}
+
+/// Scans `sources` whole in blocks of `block_seconds`, one after another
+/// (each over the threads of `pool`); `progress` is told the seconds of
+/// each chunk done. What `gwml scan` does without --resume or --mpi.
+pub fn scan_sources(
+    sources: &[Source],
+    block_seconds: f64,
+    (scanner, pool): (&Scanner, &rayon::ThreadPool),
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<Report, Error> {
+    let (runs, gaps) = runs(sources)?;
+    let spans: Vec<Span> = runs.iter().map(|r| r.span.clone()).collect();
+    let blocks = plan_blocks(&spans, block_seconds, scanner.options());
+    let all: Vec<usize> = (0..blocks.len()).collect();
+    let reports = scan_blocks(&runs, &blocks, &all, None, (scanner, pool), progress, &mut |_, _| Ok(()))?;
+    merge(reports.into_iter().map(|(_, r)| r).collect(), gaps, scanner.options().cluster_gap)
+        .ok_or_else(|| Error::Data("no strain to scan".into()))
 }
 
 /// Block reports as bytes (to send between ranks) and back.
@@ -123,13 +145,13 @@ pub fn encode(reports: &[(usize, Report)]) -> Vec<u8> {
     serde_json::to_vec(&list).expect("JSON values serialise")
 }
 
-/// The reports [`encode`] wrote.
-pub fn decode(bytes: &[u8]) -> Result<Vec<(usize, Report)>, String> {
-    let list: Vec<Value> = serde_json::from_slice(bytes).map_err(|e| format!("error: a rank sent unreadable results: {e}"))?;
+/// The reports [`encode`] wrote; `from` names the sender in errors.
+pub fn decode(bytes: &[u8], from: &str) -> Result<Vec<(usize, Report)>, Error> {
+    let list: Vec<Value> = serde_json::from_slice(bytes).map_err(|e| Error::Data(format!("{from} sent unreadable results: {e}")))?;
     list.iter()
         .map(|pair| {
-            let index = pair.get(0).and_then(Value::as_u64).ok_or("error: a rank sent a result without its block")?;
-            let report = report_from_json(&pair[1], &format!("block {index} from a rank")).map_err(|e| format!("error: {e}"))?;
+            let index = pair.get(0).and_then(Value::as_u64).ok_or_else(|| Error::Data(format!("{from} sent a result without its block")))?;
+            let report = report_from_json(&pair[1], &format!("block {index} from {from}"))?;
             Ok((index as usize, report))
         })
         .collect()
@@ -154,21 +176,20 @@ impl Parts {
     /// `fingerprint` with `blocks` blocks, creating it (and, when `plan` is
     /// set, its `plan.json`). Parts of a different scan are an error: they
     /// cannot be merged with this one.
-    pub fn open(out: &Path, fingerprint: &str, blocks: usize, plan: bool) -> Result<Parts, String> {
+    pub fn open(out: &Path, fingerprint: &str, blocks: usize, plan: bool) -> Result<Parts, Error> {
         let dir = Parts::dir_for(out);
-        std::fs::create_dir_all(&dir).map_err(|e| format!("error: cannot create {}: {e}", dir.display()))?;
+        std::fs::create_dir_all(&dir).map_err(|e| Error::file(&dir, format!("cannot create: {e}")))?;
         let parts = Parts { dir };
         let plan_path = parts.dir.join("plan.json");
         let want = json!({"fingerprint": fingerprint, "blocks": blocks});
         match std::fs::read(&plan_path) {
             Ok(bytes) => {
-                let have: Value =
-                    serde_json::from_slice(&bytes).map_err(|e| format!("error: {}: not valid JSON: {e}", plan_path.display()))?;
+                let have: Value = serde_json::from_slice(&bytes).map_err(|e| Error::file(&plan_path, format!("not valid JSON: {e}")))?;
                 if have != want {
-                    return Err(format!(
-                        "error: {} holds finished blocks of another scan (other files or settings); \
+                    return Err(Error::file(
+                        &parts.dir,
+                        "holds finished blocks of another scan (other files or settings); \
                          delete it to start again, or rerun with the settings it was made with",
-                        parts.dir.display()
                     ));
                 }
             }
@@ -182,27 +203,25 @@ impl Parts {
         self.dir.join(format!("block-{index:06}.json"))
     }
 
-    fn write(&self, path: &Path, bytes: &[u8]) -> Result<(), String> {
+    fn write(&self, path: &Path, bytes: &[u8]) -> Result<(), Error> {
         let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-        std::fs::write(&tmp, bytes)
-            .and_then(|_| std::fs::rename(&tmp, path))
-            .map_err(|e| format!("error: cannot write {}: {e}", path.display()))
+        std::fs::write(&tmp, bytes).and_then(|_| std::fs::rename(&tmp, path)).map_err(|e| Error::file(path, format!("cannot write: {e}")))
     }
 
     /// The finished blocks among the first `blocks`, by index.
-    pub fn finished(&self, blocks: usize) -> Result<BTreeMap<usize, Report>, String> {
+    pub fn finished(&self, blocks: usize) -> Result<BTreeMap<usize, Report>, Error> {
         let mut out = BTreeMap::new();
         for index in 0..blocks {
             let path = self.block_path(index);
             let Ok(bytes) = std::fs::read(&path) else { continue };
-            let value: Value = serde_json::from_slice(&bytes).map_err(|e| format!("error: {}: not valid JSON: {e}", path.display()))?;
-            out.insert(index, report_from_json(&value, &path.display().to_string()).map_err(|e| format!("error: {e}"))?);
+            let value: Value = serde_json::from_slice(&bytes).map_err(|e| Error::file(&path, format!("not valid JSON: {e}")))?;
+            out.insert(index, report_from_json(&value, &path.display().to_string())?);
         }
         Ok(out)
     }
 
     /// Records block `index` as finished.
-    pub fn record(&self, index: usize, report: &Report) -> Result<(), String> {
+    pub fn record(&self, index: usize, report: &Report) -> Result<(), Error> {
         let bytes = serde_json::to_vec(&report_to_json(report)).expect("JSON values serialise");
         self.write(&self.block_path(index), &bytes)
     }
@@ -266,7 +285,7 @@ mod tests {
         parts.record(2, &report).unwrap();
         let again = Parts::open(&out, "files a, block 256", 4, true).unwrap();
         assert_eq!(again.finished(4).unwrap().into_keys().collect::<Vec<_>>(), vec![2]);
-        let e = Parts::open(&out, "files a, block 512", 4, true).err().unwrap();
+        let e = Parts::open(&out, "files a, block 512", 4, true).err().unwrap().to_string();
         assert!(e.contains("another scan") && e.contains(".parts"), "{e}");
         again.remove();
         assert!(!Parts::dir_for(&out).exists());
