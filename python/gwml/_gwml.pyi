@@ -96,3 +96,19 @@ class XlaFunction:
     def __init__(self, scene: Scene, output: str, params: Sequence[str]) -> None: ...
 
 def xla_handler() -> Any: ...
+
+def scan(
+    paths: Sequence[str],
+    *,
+    snr_threshold: float = 7.5,
+    fmin: float = 10.0,
+    fmax: float = 2048.0,
+    psd_stretch: float = 128.0,
+    fft_length: float = 4.0,
+    block: float = 1024.0,
+    threads: Optional[int] = None,
+    classify: bool = True,
+    sample_rate: Optional[float] = None,
+    gps_start: Optional[float] = None,
+    ifo: str = "X1",
+) -> tuple[dict[str, Any], list[str]]: ...

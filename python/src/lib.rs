@@ -6,6 +6,7 @@
 mod batch;
 mod data;
 mod errors;
+mod scan;
 mod scene;
 mod xla;
 
@@ -105,6 +106,7 @@ fn _gwml(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<OutputInfo>()?;
     m.add_class::<xla::XlaFunction>()?;
     m.add_function(wrap_pyfunction!(xla::xla_handler, m)?)?;
+    m.add_function(wrap_pyfunction!(scan::scan, m)?)?;
     m.add("GwmlError", py.get_type::<GwmlError>())?;
     m.add("CompileError", py.get_type::<CompileError>())?;
     m.add("RunError", py.get_type::<RunError>())?;
