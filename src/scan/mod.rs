@@ -5,14 +5,14 @@ use crate::cluster::World;
 use crate::commands::render;
 use crate::explain::Explained;
 use crate::strain_input::StrainInput;
-use gwml_strain::blocks::{self, deal, decode, encode, merge, plan_blocks, scan_blocks, Parts};
-use gwml_strain::input::{Source, StrainRun};
 use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate_with, write_truth, NoiseCurve, StrainOptions};
 use gwml_lab::synth::{real_fits::RealShapes, GlitchClass};
+use gwml_strain::blocks::{self, deal, decode, encode, merge, plan_blocks, scan_blocks, Parts};
 use gwml_strain::classifier::{Classifier, Manifest};
 use gwml_strain::gwosc::{self, WriteOptions};
+use gwml_strain::input::{Source, StrainRun};
 use gwml_strain::scan::{Report, ScanOptions, Scanner};
 use gwml_strain::series::{plan, SkipReason, Span};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -20,7 +20,6 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
 
 #[derive(clap::Args)]
 pub struct StrainArgs {
@@ -258,9 +257,7 @@ fn classifier(a: &ScanArgs) -> Result<Option<Classifier>, String> {
     let fail = |e: gwml_strain::Error| format!("error: {e}");
     let c = match (&a.model, &a.weights) {
         (None, Some(_)) => return Err("error: --weights needs --model (the .gw file they belong to)".into()),
-        (None, None) => {
-            Classifier::shipped().map_err(fail)?
-        }
+        (None, None) => Classifier::shipped().map_err(fail)?,
         (Some(m), w) if m.extension().is_some_and(|e| e == "json") => {
             if w.is_some() {
                 return Err("error: a manifest names its own weights; drop --weights".into());
@@ -296,10 +293,35 @@ fn fingerprint(a: &ScanArgs, options: &ScanOptions) -> String {
     out
 }
 
+/// Opens the inputs, plans the blocks, finds those recorded as finished
+/// (with --resume or --mpi) and reads the first block this rank scans.
+fn open_and_plan(a: &ScanArgs, options: &ScanOptions, world: &World) -> Result<Opened, String> {
+    let fail = |e: gwml_strain::Error| format!("error: {e}");
+    let sources = a.input.open()?;
+    let spans: Vec<Span> = sources.iter().map(Source::span).collect();
+    let (runs, gaps) = plan(&spans).map_err(fail)?;
+    let run_spans: Vec<Span> = runs.iter().map(|r| StrainRun::new(&sources, r).span).collect();
+    let blocks = plan_blocks(&run_spans, a.block, options);
+    let (parts, done) = match a.resume || a.mpi {
+        true => {
+            let parts = Parts::open(&a.out, &fingerprint(a, options), blocks.len(), world.is_root()).map_err(fail)?;
+            let done = parts.finished(blocks.len()).map_err(fail)?;
+            (Some(parts), done)
+        }
+        false => (None, BTreeMap::new()),
+    };
+    let todo: Vec<usize> = (0..blocks.len()).filter(|i| !done.contains_key(i)).collect();
+    let mine = deal(&todo, world.rank(), world.size());
+    let first = match mine.first() {
+        Some(&i) => Some(StrainRun::new(&sources, &runs[blocks[i].run]).block(blocks[i].start, blocks[i].length).map_err(fail)?),
+        None => None,
+    };
+    Ok(Opened { sources, runs, gaps, blocks, parts, done, todo, mine, first })
+}
+
 /// `gwml scan`.
 pub fn scan(a: ScanArgs) -> Result<(), String> {
     let started = Instant::now();
-    let world = World::new(a.mpi)?;
     let fail = |e: gwml_strain::Error| format!("error: {e}");
     let format = match a.out.extension().and_then(|e| e.to_str()) {
         Some("csv") => "csv",
@@ -316,40 +338,23 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
         fft_length: a.fft_length,
         ..ScanOptions::default()
     };
-    let record = a.resume || a.mpi;
-    // Open the files, plan the blocks, find those already recorded and read
-    // this process's first one while the classifier and the whitening scene
-    // for 4096 Hz data (GWOSC's usual rate) compile.
-    let (rank, ranks, root) = (world.rank(), world.size(), world.is_root());
-    let (opened, scanner) = std::thread::scope(|scope| {
-        let opening = scope.spawn(|| -> Result<Opened, String> {
-            let sources = a.input.open()?;
-            let spans: Vec<Span> = sources.iter().map(Source::span).collect();
-            let (runs, gaps) = plan(&spans).map_err(|e| format!("error: {e}"))?;
-            let run_spans: Vec<Span> = runs.iter().map(|r| StrainRun::new(&sources, r).span).collect();
-            let blocks = plan_blocks(&run_spans, a.block, &options);
-            let (parts, done) = match record {
-                true => {
-                    let parts = Parts::open(&a.out, &fingerprint(&a, &options), blocks.len(), root).map_err(fail)?;
-                    let done = parts.finished(blocks.len()).map_err(fail)?;
-                    (Some(parts), done)
-                }
-                false => (None, BTreeMap::new()),
-            };
-            let todo: Vec<usize> = (0..blocks.len()).filter(|i| !done.contains_key(i)).collect();
-            let mine = deal(&todo, rank, ranks);
-            let first = match mine.first() {
-                Some(&i) => Some(StrainRun::new(&sources, &runs[blocks[i].run]).block(blocks[i].start, blocks[i].length).map_err(fail)?),
-                None => None,
-            };
-            Ok(Opened { sources, runs, gaps, blocks, parts, done, todo, mine, first })
+    // Compile the classifier and the whitening scene for 4096 Hz data
+    // (GWOSC's usual rate) while MPI starts and the files are opened, the
+    // blocks planned and this process's first one read.
+    let (world, opened, scanner) = std::thread::scope(|scope| {
+        let compiling = scope.spawn(|| {
+            let scanner = classifier(&a).and_then(|c| Scanner::new(options.clone(), c).map_err(|e| format!("error: {e}")))?;
+            let _ = scanner.warm_up(a.input.sample_rate.unwrap_or(4096.0));
+            Ok::<_, String>(scanner)
         });
-        let scanner = classifier(&a).and_then(|c| Scanner::new(options.clone(), c).map_err(|e| format!("error: {e}")));
-        if let Ok(s) = &scanner {
-            let _ = s.warm_up(a.input.sample_rate.unwrap_or(4096.0));
-        }
-        (opening.join().expect("the opening thread does not panic"), scanner)
+        let world = World::new(a.mpi);
+        let opened = match &world {
+            Ok(w) => open_and_plan(&a, &options, w),
+            Err(e) => Err(e.clone()),
+        };
+        (world, opened, compiling.join().expect("the compiling thread does not panic"))
     });
+    let world = world?;
     // Every rank must scan the same plan: rank 0's list of blocks to do (or
     // its error) goes to all, and a rank that sees another list stops.
     let Opened { sources, runs, gaps, blocks, parts, done, todo, mine, first } = agree(&world, opened)?;

@@ -150,7 +150,8 @@ pub fn decode(bytes: &[u8], from: &str) -> Result<Vec<(usize, Report)>, Error> {
     let list: Vec<Value> = serde_json::from_slice(bytes).map_err(|e| Error::Data(format!("{from} sent unreadable results: {e}")))?;
     list.iter()
         .map(|pair| {
-            let index = pair.get(0).and_then(Value::as_u64).ok_or_else(|| Error::Data(format!("{from} sent a result without its block")))?;
+            let index =
+                pair.get(0).and_then(Value::as_u64).ok_or_else(|| Error::Data(format!("{from} sent a result without its block")))?;
             let report = report_from_json(&pair[1], &format!("block {index} from {from}"))?;
             Ok((index as usize, report))
         })
