@@ -12,7 +12,9 @@ block="${3:-128}"
 bin=target/release/gwml
 work="${TMPDIR:-/tmp}/gwml-scaling"
 mkdir -p "$work"
-mpi=(mpirun --allow-run-as-root --oversubscribe --bind-to none)
+# OpenMPI binds each rank to a core: one rank uses one core, its reading
+# thread included, so 1 -> N ranks is 1 -> N cores.
+mpi=(mpirun --allow-run-as-root --oversubscribe --bind-to core)
 
 [ -e "$work/s4096.hdf5" ] || "$bin" data strain --duration 4096 --seed 42 --out "$work/s4096.hdf5" >/dev/null
 [ -e "$work/train.npz" ] || "$bin" data bursts --n 4096 --seed 1 --out "$work/train.npz" >/dev/null
