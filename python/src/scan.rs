@@ -4,7 +4,7 @@
 
 use crate::errors::bind_error;
 use gwml_strain::blocks::scan_sources;
-use gwml_strain::classifier::Classifier;
+use gwml_strain::classifier::{probability_column, Classifier};
 use gwml_strain::input::{NpyInfo, Source};
 use gwml_strain::scan::{ScanOptions, Scanner};
 use numpy::PyArray1;
@@ -78,8 +78,7 @@ pub fn scan<'py>(
     columns.set_item("f_end", floats(&|r| r.trigger.f_end))?;
     columns.set_item("tiles", PyArray1::from_vec(py, rows.iter().map(|r| r.trigger.tiles as i64).collect()))?;
     for (k, class) in classes.iter().enumerate() {
-        let name = format!("p_{}", class.to_lowercase().replace(' ', "_"));
-        columns.set_item(name, floats(&|r| r.verdict.as_ref().map_or(f64::NAN, |v| v.probabilities[k])))?;
+        columns.set_item(probability_column(class), floats(&|r| r.verdict.as_ref().map_or(f64::NAN, |v| v.probabilities[k])))?;
     }
     Ok((columns, classes))
 }

@@ -10,7 +10,7 @@ use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate_with, write_truth, NoiseCurve, StrainOptions};
 use gwml_lab::synth::{real_fits::RealShapes, GlitchClass};
 use gwml_strain::blocks::{self, deal, decode, encode, merge, plan_blocks, scan_blocks, Parts};
-use gwml_strain::classifier::{Classifier, Manifest};
+use gwml_strain::classifier::{probability_column, Classifier, Manifest};
 use gwml_strain::gwosc::{self, WriteOptions};
 use gwml_strain::input::{Source, StrainRun};
 use gwml_strain::scan::{Report, ScanOptions, Scanner};
@@ -447,7 +447,7 @@ fn triggers_csv(report: &Report, classes: &[String], explained: &[Explained]) ->
         let _ = write!(out, ",{}", crate::explain::CSV_COLUMNS);
     }
     for c in classes {
-        let _ = write!(out, ",p_{}", c.to_lowercase().replace(' ', "_"));
+        let _ = write!(out, ",{}", probability_column(c));
     }
     out.push('\n');
     for (i, row) in report.rows.iter().enumerate() {

@@ -20,6 +20,12 @@ use gwml_runtime::checkpoint::{self, Checkpoint};
 use gwml_runtime::{Model, Scene, Value};
 use std::path::{Path, PathBuf};
 
+/// The name of the column holding the probability of `class` in trigger
+/// tables (`gwml scan`'s CSV, `gwml.scan`): `p_koi_fish` for "Koi Fish".
+pub fn probability_column(class: &str) -> String {
+    format!("p_{}", class.to_lowercase().replace(' ', "_"))
+}
+
 /// A classifier's manifest.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Manifest {
