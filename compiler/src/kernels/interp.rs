@@ -48,58 +48,99 @@ pub fn interpret(func: &Function, params: &[f64], inputs: &[Tensor]) -> InterpRe
 /// must be wanted too); the others are left empty. The compiler folds
 /// grid-only values this way without evaluating the rest of a scene.
 pub fn interpret_only(func: &Function, params: &[f64], inputs: &[Tensor], wanted: &[bool]) -> InterpResult {
+    interpret_streaming(func, params, inputs, wanted, |_, _| true)
+}
+
+/// [`interpret_only`] that hands each value to `visit(index, value)` as soon
+/// as it is computed and keeps it in the result only if `visit` returns
+/// true; the others are freed after their last wanted user. Memory then
+/// follows the values alive at once, not the whole scene: on a 72 s chunk
+/// at 4096 Hz every array is 4.7 MB, and fresh pages cost more than the
+/// arithmetic.
+pub fn interpret_streaming(
+    func: &Function,
+    params: &[f64],
+    inputs: &[Tensor],
+    wanted: &[bool],
+    mut visit: impl FnMut(usize, &Tensor) -> bool,
+) -> InterpResult {
+    let mut last_use = vec![usize::MAX; func.insts.len()];
+    for (i, inst) in func.insts.iter().enumerate().filter(|(i, _)| wanted[*i]) {
+        for v in inst.op.operands() {
+            last_use[v.index()] = i;
+        }
+    }
+    let mut kept = vec![false; func.insts.len()];
     let mut values: Vec<Tensor> = Vec::with_capacity(func.insts.len());
-    for (inst, wanted) in func.insts.iter().zip(wanted) {
+    // Buffers of freed values, reused so large arrays do not take fresh pages.
+    let mut spare: Vec<Tensor> = Vec::new();
+    for (i, (inst, wanted)) in func.insts.iter().zip(wanted).enumerate() {
         if !wanted {
             values.push(Tensor::new());
             continue;
         }
-        let len = func.len_of(inst.ty.shape);
-        let get = |v: Value, i: usize| -> C64 {
-            let t: &Tensor = &values[v.index()];
-            if t.len() == 1 {
-                t[0]
-            } else {
-                t[i]
-            }
-        };
-        let elem_of = |v: Value| func.ty(v).elem;
-        let t: Tensor = match inst.op {
-            Op::Const(b) => vec![C64::new(f64::from_bits(b), 0.0)],
-            Op::ConstComplex(r, i) => vec![C64::new(f64::from_bits(r), f64::from_bits(i))],
-            Op::Param(p) => vec![C64::new(params[p as usize], 0.0)],
-            Op::Input(i) => inputs[i as usize].clone(),
-            Op::Table(t) => func.tables[t as usize].data.iter().map(|x| C64::new(*x, 0.0)).collect(),
-            Op::GridCoord(g) => {
-                let gr = &func.grids[g.0 as usize];
-                (0..gr.len).map(|i| C64::new(gr.start + i as f64 * gr.step, 0.0)).collect()
-            }
-            Op::Unary(u, a) => (0..len).map(|i| eval::unary(u, get(a, i), elem_of(a))).collect(),
-            Op::Binary(op, x, y) => (0..len).map(|i| eval::binary(op, get(x, i), get(y, i), elem_of(x))).collect(),
-            Op::PowConst(a, c) => (0..len).map(|i| C64::new(eval::pow_const(get(a, i).re, f64::from_bits(c)), 0.0)).collect(),
-            Op::Select(c, x, y) => (0..len).map(|i| if get(c, i).re != 0.0 { get(x, i) } else { get(y, i) }).collect(),
-            Op::Broadcast(a, _) => vec![get(a, 0); len],
-            Op::Reduce(Reduce::Sum, a) => {
-                // Compensated so the oracle is accurate.
-                let xs = &values[a.index()];
-                vec![C64::new(compensated_sum(xs.iter().map(|x| x.re)), compensated_sum(xs.iter().map(|x| x.im)))]
-            }
-            Op::Reduce(Reduce::Max, a) => vec![C64::new(values[a.index()].iter().map(|x| x.re).fold(f64::NEG_INFINITY, f64::max), 0.0)],
-            Op::Dft(d, a) => {
-                let n = if d.inverse { len } else { values[a.index()].len() };
-                crate::kernels::dft::apply(d, n, &values[a.index()])
-            }
-            Op::Band(op, n, a) => crate::kernels::band::apply(op, &func.bands[n as usize].nodes, &values[a.index()]),
-            Op::Tensor(t, _, a, b) => {
-                let re = |v: Value| values[v.index()].iter().map(|z| z.re).collect::<Vec<f64>>();
-                let mut out = vec![0.0; t.out_len()];
-                crate::kernels::tensor::apply(t, &re(a), &re(b), &mut out);
-                out.into_iter().map(|x| C64::new(x, 0.0)).collect()
-            }
-        };
+        let mut t = spare.pop().unwrap_or_default();
+        evaluate(func, inst, &values, (params, inputs), &mut t);
+        kept[i] = visit(i, &t);
         values.push(t);
+        for v in inst.op.operands().into_iter().chain([Value(i as u32)]) {
+            let last = if v.index() == i { usize::MAX } else { i };
+            if last_use[v.index()] == last && !kept[v.index()] && !values[v.index()].is_empty() {
+                spare.push(std::mem::take(&mut values[v.index()]));
+            }
+        }
     }
     InterpResult { values }
+}
+
+/// Writes the value of one instruction into `out` (whose capacity is
+/// reused), its operands' values in `values`.
+fn evaluate(func: &Function, inst: &Inst, values: &[Tensor], (params, inputs): (&[f64], &[Tensor]), out: &mut Tensor) {
+    let len = func.len_of(inst.ty.shape);
+    let get = |v: Value, i: usize| -> C64 {
+        let t: &Tensor = &values[v.index()];
+        if t.len() == 1 {
+            t[0]
+        } else {
+            t[i]
+        }
+    };
+    let elem_of = |v: Value| func.ty(v).elem;
+    let real = |x: f64| C64::new(x, 0.0);
+    out.clear();
+    match inst.op {
+        Op::Const(b) => out.push(real(f64::from_bits(b))),
+        Op::ConstComplex(r, i) => out.push(C64::new(f64::from_bits(r), f64::from_bits(i))),
+        Op::Param(p) => out.push(real(params[p as usize])),
+        Op::Input(i) => out.extend_from_slice(&inputs[i as usize]),
+        Op::Table(t) => out.extend(func.tables[t as usize].data.iter().map(|x| real(*x))),
+        Op::GridCoord(g) => {
+            let gr = &func.grids[g.0 as usize];
+            out.extend((0..gr.len).map(|i| real(gr.start + i as f64 * gr.step)));
+        }
+        Op::Unary(u, a) => out.extend((0..len).map(|i| eval::unary(u, get(a, i), elem_of(a)))),
+        Op::Binary(op, x, y) => out.extend((0..len).map(|i| eval::binary(op, get(x, i), get(y, i), elem_of(x)))),
+        Op::PowConst(a, c) => out.extend((0..len).map(|i| real(eval::pow_const(get(a, i).re, f64::from_bits(c))))),
+        Op::Select(c, x, y) => out.extend((0..len).map(|i| if get(c, i).re != 0.0 { get(x, i) } else { get(y, i) })),
+        Op::Broadcast(a, _) => out.resize(len, get(a, 0)),
+        Op::Reduce(Reduce::Sum, a) => {
+            // Compensated so the oracle is accurate.
+            let xs = &values[a.index()];
+            out.push(C64::new(compensated_sum(xs.iter().map(|x| x.re)), compensated_sum(xs.iter().map(|x| x.im))));
+        }
+        Op::Reduce(Reduce::Max, a) => out.push(real(values[a.index()].iter().map(|x| x.re).fold(f64::NEG_INFINITY, f64::max))),
+        Op::Dft(d, a) => {
+            let n = if d.inverse { len } else { values[a.index()].len() };
+            *out = crate::kernels::dft::apply(d, n, &values[a.index()]);
+        }
+        Op::Band(op, n, a) => *out = crate::kernels::band::apply(op, &func.bands[n as usize].nodes, &values[a.index()]),
+        Op::Tensor(t, _, a, b) => {
+            let re = |v: Value| values[v.index()].iter().map(|z| z.re).collect::<Vec<f64>>();
+            let mut flat = vec![0.0; t.out_len()];
+            crate::kernels::tensor::apply(t, &re(a), &re(b), &mut flat);
+            out.extend(flat.into_iter().map(real));
+        }
+    }
 }
 
 /// The transform of [`Dft`] by its definition, in O(n²) with compensated

@@ -90,6 +90,10 @@ pub fn default_magnitudes(func: &Function) -> Option<Vec<f64>> {
         return None;
     }
     let (params, inputs) = defaults(func);
-    let values = interp::interpret(func, &params, &inputs).values;
-    Some(values.iter().map(|t| t.iter().flat_map(|z| [z.re.abs(), z.im.abs()]).filter(|x| x.is_finite()).fold(0.0, f64::max)).collect())
+    let mut magnitudes = vec![0.0; func.insts.len()];
+    interp::interpret_streaming(func, &params, &inputs, &vec![true; func.insts.len()], |i, t| {
+        magnitudes[i] = t.iter().flat_map(|z| [z.re.abs(), z.im.abs()]).filter(|x| x.is_finite()).fold(0.0, f64::max);
+        false
+    });
+    Some(magnitudes)
 }

@@ -40,11 +40,14 @@ fn grid_only_flags(func: &Function) -> Vec<bool> {
     g
 }
 
-/// Values of the grid-only instructions (`grid_only`, from
-/// [`grid_only_flags`]), which depend on neither params nor inputs; the
-/// others are left empty.
-fn evaluate_grid_only(func: &Function, grid_only: &[bool]) -> Vec<Vec<f64>> {
-    let r = interp::interpret_only(func, &vec![f64::NAN; func.params.len()], &vec![Vec::new(); func.inputs.len()], grid_only);
+/// Evaluates the grid-only instructions (`grid_only`, from
+/// [`grid_only_flags`]), which depend on neither params nor inputs, handing
+/// each value's real parts to `visit`; a value is kept (and returned) only
+/// where `visit` returns true, the others are left empty.
+fn evaluate_grid_only(func: &Function, grid_only: &[bool], mut visit: impl FnMut(usize, &interp::Tensor) -> bool) -> Vec<Vec<f64>> {
+    let nan_params = vec![f64::NAN; func.params.len()];
+    let no_inputs = vec![Vec::new(); func.inputs.len()];
+    let r = interp::interpret_streaming(func, &nan_params, &no_inputs, grid_only, |i, t| visit(i, t));
     r.values.into_iter().map(|t| t.into_iter().map(|z| z.re).collect()).collect()
 }
 
@@ -66,8 +69,17 @@ fn split_powers(func: &Function) -> Function {
     // Evaluated only if a rewrite asks whether an array is positive: on long
     // grids (a 72 s chunk at 4096 Hz) the interpreter is most of the time
     // a scene takes to compile.
-    let values = std::cell::OnceCell::new();
-    let values = || values.get_or_init(|| evaluate_grid_only(func, &grid_only));
+    let positives = std::cell::OnceCell::new();
+    let positives = || {
+        positives.get_or_init(|| {
+            let mut positive = vec![false; func.insts.len()];
+            evaluate_grid_only(func, &grid_only, |i, t| {
+                positive[i] = t.iter().all(|x| x.re > 0.0);
+                false
+            });
+            positive
+        })
+    };
     let mut header = func.clone();
     header.insts.clear();
     let mut b = Builder::new(header, true);
@@ -75,7 +87,7 @@ fn split_powers(func: &Function) -> Function {
     // Rewritten values known as a product `s^±1 · a` (new scalar s, new
     // grid-only positive array a), so `log` of them splits too.
     let mut products: std::collections::HashMap<Value, (Value, Value, f64)> = std::collections::HashMap::new();
-    let positive = |v: Value| func.ty(v).elem == Elem::Real && grid_only[v.index()] && values()[v.index()].iter().all(|x| *x > 0.0);
+    let positive = |v: Value| func.ty(v).elem == Elem::Real && grid_only[v.index()] && positives()[v.index()];
     let scalar_of = |v: Value| match func.insts[v.index()].op {
         Op::Broadcast(s, _) if func.ty(s).elem == Elem::Real => Some(s),
         _ => None,
@@ -211,12 +223,21 @@ fn tabulate(func: &Function) -> Function {
             }
         }
     }
-    let values = evaluate_grid_only(func, &grid_only);
+    let cheap = |inst: &Inst| matches!(inst.op, Op::Const(_) | Op::ConstComplex(..) | Op::GridCoord(_) | Op::Table(_) | Op::Broadcast(..));
+    let tabulated: Vec<Option<GridId>> = func
+        .insts
+        .iter()
+        .enumerate()
+        .map(|(i, inst)| match (frontier[i] && grid_only[i] && !cheap(inst), inst.ty.shape, inst.ty.elem) {
+            (true, Shape::Grid(g), Elem::Real) => Some(g),
+            _ => None,
+        })
+        .collect();
+    let mut values = evaluate_grid_only(func, &grid_only, |i, _| tabulated[i].is_some());
     let mut out = func.clone();
-    for (i, inst) in func.insts.iter().enumerate() {
-        let cheap = matches!(inst.op, Op::Const(_) | Op::ConstComplex(..) | Op::GridCoord(_) | Op::Table(_) | Op::Broadcast(..));
-        if let (true, true, false, Shape::Grid(g), Elem::Real) = (frontier[i], grid_only[i], cheap, inst.ty.shape, inst.ty.elem) {
-            out.tables.push(Table { grid: g, data: values[i].clone() });
+    for (i, grid) in tabulated.iter().enumerate() {
+        if let Some(g) = grid {
+            out.tables.push(Table { grid: *g, data: std::mem::take(&mut values[i]) });
             out.insts[i].op = Op::Table(out.tables.len() as u32 - 1);
         }
     }
