@@ -107,7 +107,7 @@ pub fn campaign(out: &Path, per_class: usize, seed: u64) -> Result<(), String> {
     use gwml_lab::explain::{run_campaign, summarise, CampaignOptions};
     use std::fmt::Write;
     std::fs::create_dir_all(out).map_err(|e| format!("error: cannot create {}: {e}", out.display()))?;
-    let o = CampaignOptions { per_class, classes: vec![1, 2, 3, 4, 5], snr: (10.0, 30.0), window: 2.0, seed };
+    let o = CampaignOptions { per_class, classes: (1..=7).collect(), snr: (10.0, 30.0), window: 2.0, seed };
     let bar = indicatif::ProgressBar::new((per_class * o.classes.len()) as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} injections explained, ETA {eta}").expect("template"));
     let outcomes = run_campaign(&o, |_| bar.inc(1)).map_err(|e| format!("error: {}", e.render(false)))?;

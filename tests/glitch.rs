@@ -1,5 +1,6 @@
 //! `std::glitch`: each family has the morphology its documentation states
-//! (peak frequency, duration, a low-frequency head, arches per second), and
+//! (peak frequency, duration, a low-frequency head, arches per second, a
+//! slower decay, fringe arches), and
 //! gradients with respect to every shape parameter match finite differences.
 
 use gwml::{Model, Value};
@@ -9,7 +10,7 @@ const RATE: f64 = 4096.0;
 /// `h(t)` of `call` on 2 s at 4096 Hz, and its power spectrum |rfft|^2 (0.5 Hz bins).
 fn signal(call: &str) -> (Vec<f64>, Vec<f64>) {
     let src = format!(
-        "use std::glitch::{{blip, koi_fish, whistle, scratchy}}\nscene g {{\n  grid t = times(rate: 4096 Hz, duration: 2 s)\n  grid f = spectrum(t)\n  \
+        "use std::glitch::{{blip, koi_fish, whistle, scratchy, tomte, scattered_light}}\nscene g {{\n  grid t = times(rate: 4096 Hz, duration: 2 s)\n  grid f = spectrum(t)\n  \
          output h = {call}\n  output power = abs2(rfft(h, f)) / 1 s^2\n}}\n"
     );
     let model = Model::from_source("glitch.gw", &src).unwrap_or_else(|e| panic!("{e}"));
@@ -98,15 +99,76 @@ fn scratchy_is_a_long_train_of_arches() {
     assert_eq!(best, 20.0);
 }
 
+/// Energy-weighted mean of `|t − t0|` over the samples before and after
+/// `t0`: how far a signal reaches each side.
+fn reach(h: &[f64], t0: f64) -> (f64, f64) {
+    let side = |after: bool| {
+        let (mut w, mut wt) = (0.0, 0.0);
+        for (j, x) in h.iter().enumerate() {
+            let dt = j as f64 / RATE - t0;
+            if (dt > 0.0) == after {
+                w += x * x;
+                wt += x * x * dt.abs();
+            }
+        }
+        wt / w
+    };
+    (side(false), side(true))
+}
+
+#[test]
+fn tomte_is_a_low_frequency_burst_with_a_slower_decay() {
+    let (h, power) = signal("tomte(t, t0: 1 s, f0: 40 Hz, q: 2.5, asym: 2.0, amp: 1.0)");
+    assert!((peak(&power) - 40.0).abs() < 6.0, "peak {}", peak(&power));
+    assert!(band_fraction(&power, 15.0, 80.0) > 0.9);
+    // The envelope (from two quadratures) decays `asym` times as far as it rises.
+    let (h90, _) = signal("tomte(t, t0: 1 s, f0: 40 Hz, q: 2.5, asym: 2.0, amp: 1.0, phi: 1.5707963267948966)");
+    let envelope: Vec<f64> = h.iter().zip(&h90).map(|(a, b)| a.hypot(*b)).collect();
+    let (before, after) = reach(&envelope, 1.0);
+    assert!((after / before - 2.0).abs() < 0.1, "rise {before} s, decay {after} s");
+    // At asym 1 it is the blip's sine-Gaussian.
+    let (sym, _) = signal("tomte(t, t0: 1 s, f0: 40 Hz, q: 2.5, asym: 1.0, amp: 1.0, phi: 0.3)");
+    let (sg, _) = signal("blip(t, t0: 1 s, f0: 40 Hz, q: 2.5, amp: 1.0, phi: 0.3)");
+    assert!(sym.iter().zip(&sg).all(|(a, b)| (a - b).abs() < 1e-12));
+}
+
+#[test]
+fn scattered_light_arches_peak_at_the_fringe_frequency_once_per_half_period() {
+    // A surface moving at 1 Hz: arches every 0.5 s, each reaching 40 Hz at
+    // its top; no bounces, so one fringe frequency, |40 Hz · cos(2π · 1 Hz · dt)|.
+    let (h, power) = signal("scattered_light(t, t0: 1 s, f_fringe: 40 Hz, f_motion: 1 Hz, bounce: 0.0, duration: 4 s, amp: 1.0)");
+    assert!(band_fraction(&power, 0.0, 41.0) > 0.97, "{}", band_fraction(&power, 0.0, 41.0));
+    // Zero crossings 0.1 s either side of an arch's top: the instantaneous
+    // frequency there is 40 cos(0.2 π) = 32.4 Hz, so ~6.5 crossings per 0.1 s;
+    // at the arch's foot (dt = 0.25 s) it falls to zero.
+    let crossings = |from: f64, to: f64| {
+        let (a, b) = ((from * RATE) as usize, (to * RATE) as usize);
+        h[a..b].windows(2).filter(|w| w[0].signum() != w[1].signum()).count()
+    };
+    let top = crossings(0.95, 1.05);
+    assert!((7..=9).contains(&top), "{top} zero crossings in 0.1 s at the top (40 Hz: 8)");
+    assert!(crossings(1.2, 1.3) <= 3, "{} crossings near the foot", crossings(1.2, 1.3));
+    // The next arch tops 0.5 s later.
+    assert!((7..=9).contains(&crossings(1.45, 1.55)));
+    // A bounce adds the second harmonic's arch.
+    let (_, bounced) = signal("scattered_light(t, t0: 1 s, f_fringe: 40 Hz, f_motion: 1 Hz, bounce: 0.5, duration: 4 s, amp: 1.0)");
+    assert!(band_fraction(&bounced, 42.0, 81.0) > 0.1 && band_fraction(&power, 42.0, 81.0) < 0.01);
+}
+
 #[test]
 fn every_shape_parameter_has_a_correct_gradient() {
-    let src = "use std::glitch::{blip, koi_fish, whistle, scratchy}\nscene g {\n  grid t = times(rate: 4096 Hz, duration: 1 s)\n  \
-               input n: real[t] = sin(200.0 * t / 1 s) + sin(880.0 * t / 1 s) + cos(5000.0 * t / 1 s)\n  \
+    let src = "use std::glitch::{blip, koi_fish, whistle, scratchy, tomte, scattered_light}\nscene g {\n  \
+               grid t = times(rate: 4096 Hz, duration: 1 s)\n  \
+               input n: real[t] = sin(200.0 * t / 1 s) + sin(880.0 * t / 1 s) + cos(5000.0 * t / 1 s) + sin(230.0 * t / 1 s)\n  \
                param f0: Hz = 140.0\n  param q = 3.5\n  param t0: s = 0.5\n  param fh: Hz = 32.0\n  param lead: s = 0.03\n  \
                param fmin: Hz = 650.0\n  param fmax: Hz = 950.0\n  param half: s = 0.15\n  param rate: Hz = 18.0\n  param dur: s = 0.6\n  \
-               output loss = sum(n * (blip(t, t0, f0, q, 1.0) + koi_fish(t, t0, f0, q, 1.0, f_head: fh, lead: lead) \
-               + whistle(t, t0, fmin, fmax, half, 1.0) + scratchy(t, t0, f0, rate, dur, 1.0)))\n  \
-               grad loss wrt [f0, q, t0, fh, lead, fmin, fmax, half, rate, dur]\n}\n";
+               param qh = 4.0\n  param tail = 2.0\n  param drift = 0.1\n  param asym = 1.7\n  \
+               param ff: Hz = 38.0\n  param fm: Hz = 0.8\n  param bounce = 0.3\n  \
+               output loss = sum(n * (blip(t, t0, f0, q, 1.0) \
+               + koi_fish(t, t0, f0, q, 1.0, f_head: fh, lead: lead, q_head: qh, tail: tail, drift: drift) \
+               + whistle(t, t0, fmin, fmax, half, 1.0) + scratchy(t, t0, f0, rate, dur, 1.0) + tomte(t, t0, 0.3 * f0, q, asym, 1.0) \
+               + scattered_light(t, t0, ff, fm, bounce, dur, 1.0)))\n  \
+               grad loss wrt [f0, q, t0, fh, lead, fmin, fmax, half, rate, dur, qh, tail, drift, asym, ff, fm, bounce]\n}\n";
     let model = Model::from_source("grad.gw", src).unwrap_or_else(|e| panic!("{e}"));
     let scene = model.scene(None).unwrap();
     let mut run = scene.bind();
@@ -122,6 +184,13 @@ fn every_shape_parameter_has_a_correct_gradient() {
         ("half", 0.15),
         ("rate", 18.0),
         ("dur", 0.6),
+        ("qh", 4.0),
+        ("tail", 2.0),
+        ("drift", 0.1),
+        ("asym", 1.7),
+        ("ff", 38.0),
+        ("fm", 0.8),
+        ("bounce", 0.3),
     ] {
         let g = out.grad("loss", name).unwrap();
         let h = 1e-7 * f64::max(x0, 1e-3);

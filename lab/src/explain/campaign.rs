@@ -66,11 +66,32 @@ impl Outcome {
             .filter_map(|p| {
                 let t = match p.name.as_str() {
                     "span" => truth("f_max").zip(truth("f_min")).map(|(a, b)| a - b),
+                    // The benchmark's Koi Fish head decays `asym` times slower than it rises.
+                    "tail" => truth("asym"),
                     name => truth(name),
                 }?;
-                let name = ["f0", "q", "f_head", "head", "lead", "f_min", "span", "half", "rate", "duration", "mc", "mass_ratio"]
-                    .into_iter()
-                    .find(|n| *n == p.name)?;
+                let name = [
+                    "f0",
+                    "q",
+                    "asym",
+                    "f_head",
+                    "head",
+                    "lead",
+                    "q_head",
+                    "tail",
+                    "f_min",
+                    "span",
+                    "half",
+                    "rate",
+                    "duration",
+                    "f_fringe",
+                    "f_motion",
+                    "bounce",
+                    "mc",
+                    "mass_ratio",
+                ]
+                .into_iter()
+                .find(|n| *n == p.name)?;
                 Some((name, p.value, p.sigma, t))
             })
             .collect()

@@ -14,7 +14,7 @@ pub struct Cause {
 }
 
 /// The cause table, one row per family and one for noise alone.
-pub const CAUSES: [Cause; 6] = [
+pub const CAUSES: [Cause; 8] = [
     Cause {
         family: "blip",
         cause: "unknown for most blips; short broadband transients of the instrument. A few subsets coincide with \
@@ -40,6 +40,21 @@ pub const CAUSES: [Cause; 6] = [
         cause: "trains of mid-frequency arches; related to scattered light (ground motion moving surfaces that scatter \
                 light back into the beam), though not established for every Scratchy glitch",
         sources: "Zevin et al. 2017 (Gravity Spy); Soni et al. 2021, Class. Quantum Grav. 38 025016 (scattered light in O3)",
+    },
+    Cause {
+        family: "tomte",
+        cause: "unknown; short low-frequency transients named in Gravity Spy's O1 classes, with no established \
+                coupling to an auxiliary channel",
+        sources: "Zevin et al. 2017, Class. Quantum Grav. 34 064003 (Gravity Spy); Glanz et al. 2024 (Gravity Spy's \
+                  O3 classes)",
+    },
+    Cause {
+        family: "scattered_light",
+        cause: "light scattered off a surface moving with the ground (seismic, microseismic or anthropogenic motion \
+                of baffles, chambers or the reaction chain) rejoins the beam; each arch's top is the surface's \
+                fastest speed, its period half the motion's",
+        sources: "Accadia et al. 2010, Class. Quantum Grav. 27 194011 (scattered light in Virgo); Soni et al. 2021, \
+                  Class. Quantum Grav. 38 025016 (scattered light in LIGO's O3)",
     },
     Cause {
         family: "chirp",

@@ -56,11 +56,13 @@ pub struct Family {
 }
 
 /// Every candidate, in the order of `explain.gw`.
-pub const FAMILIES: [Family; 5] = [
+pub const FAMILIES: [Family; 7] = [
     Family { scene: "blip", label: "Blip", starts: blip_starts },
     Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts },
     Family { scene: "whistle", label: "Whistle", starts: whistle_starts },
     Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts },
+    Family { scene: "tomte", label: "Tomte", starts: tomte_starts },
+    Family { scene: "scattered_light", label: "Scattered Light", starts: scattered_light_starts },
     Family { scene: "chirp", label: "Chirp", starts: chirp_starts },
 ];
 
@@ -81,8 +83,38 @@ fn blip_starts(s: &Seed) -> Vec<Start> {
     grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[2.5, 4.5, s.q.clamp(1.5, 12.0)]])
 }
 
+// Seeded from the blip when the loudest tile is above [`HIGH_BAND`];
+// else the loudest tile is the head (loud before whitening: 0.5-4 times
+// the blip in the glitch benchmark), and the blip is the loudest pixel
+// above that band, `lead` after the head.
 fn koi_fish_starts(s: &Seed) -> Vec<Start> {
-    grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[3.0, 5.0], &[25.0, 45.0], &[0.25], &[0.02]])
+    let shape = |f0: &[f64], f_head: &[f64], lead: f64| grid(0.0, &[f0, &[1.5, 3.0], f_head, &[0.5, 2.0], &[lead], &[3.0], &[2.0]]);
+    let at = |dt: f64, starts: Vec<Start>| starts.into_iter().map(move |(_, x)| (dt, x));
+    match s.high {
+        None => at(s.dt, shape(&scaled(s.frequency, [0.8, 1.0, 1.25]), &[20.0, 30.0, 45.0], 0.02)).collect(),
+        Some((dt, f)) => {
+            let lead = (dt - s.dt).clamp(0.005, 0.06);
+            let heads = scaled(s.frequency, [0.9, 1.1]);
+            let mut starts: Vec<Start> = at(dt, shape(&scaled(f, [0.8, 1.0, 1.25]), &heads, lead)).collect();
+            starts.extend([0.01, 0.025].into_iter().flat_map(|lead| at(s.dt + lead, shape(&[90.0, 130.0, 180.0, 240.0], &heads, lead))));
+            starts
+        }
+    }
+}
+
+// Tomtes sit below ~70 Hz: starts there even when the loudest tile is
+// higher (a low burst's whitened energy can peak above its f0).
+fn tomte_starts(s: &Seed) -> Vec<Start> {
+    grid(s.dt, &[&scaled(s.frequency.clamp(25.0, 70.0), [0.7, 0.85, 1.0, 1.2]), &[1.5, 2.5, 4.0], &[1.0, 2.0]])
+}
+
+// The loudest tile sits near an arch's top (its highest fringe frequency,
+// where the whitened fringes are strongest); the surface's period sets the
+// arch's width and needs a grid: a template a few percent off in
+// f_fringe / f_motion loses the fringes' phase.
+fn scattered_light_starts(s: &Seed) -> Vec<Start> {
+    let f = s.frequency.clamp(15.0, 100.0);
+    grid(s.dt, &[&scaled(f, [0.8, 0.9, 1.0, 1.1, 1.25]), &[0.15, 0.25, 0.4, 0.6, 1.0, 1.6, 2.5], &[0.2], &[2.0]])
 }
 
 // Around the ridge's V if there is one; a coarse grid below the loudest

@@ -39,11 +39,11 @@ pub fn explanation_text(e: &Explanation, win: &Window, seed: &Seed) -> String {
         seed.frequency,
         seed.q
     );
-    let _ = writeln!(s, "{:<10} {:>9} {:>9} {:>9} {:>8} {:>7}", "family", "ln B/noise", "ln B/best", "ln Z", "ln V", "χ²/dof");
+    let _ = writeln!(s, "{:<15} {:>10} {:>9} {:>9} {:>8} {:>7}", "family", "ln B/noise", "ln B/best", "ln Z", "ln V", "χ²/dof");
     for f in &e.fits {
         let _ = writeln!(
             s,
-            "{:<10} {:>9.2} {:>9.2} {:>9.2} {:>8.2} {:>7.3}",
+            "{:<15} {:>10.2} {:>9.2} {:>9.2} {:>8.2} {:>7.3}",
             f.family.scene,
             e.ln_bayes_vs_noise(f),
             e.ln_bayes_vs_best(f),
@@ -54,7 +54,7 @@ pub fn explanation_text(e: &Explanation, win: &Window, seed: &Seed) -> String {
     }
     let _ = writeln!(
         s,
-        "{:<10} {:>9.2} {:>9} {:>9.2} {:>8} {:>7.3}",
+        "{:<15} {:>10.2} {:>9} {:>9.2} {:>8} {:>7.3}",
         "noise",
         0.0,
         "",

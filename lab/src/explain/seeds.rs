@@ -36,7 +36,14 @@ pub struct Seed {
     pub track: Option<Track>,
     /// A periodic energy envelope around the tile's frequency, if any.
     pub arches: Option<Arches>,
+    /// The loudest pixel at or above [`HIGH_BAND`] Hz in the search span
+    /// when the loudest tile is below it: `(dt, frequency)`. A Koi Fish's
+    /// head, loud at 15-50 Hz, can outshine its blip; this finds the blip.
+    pub high: Option<(f64, f64)>,
 }
+
+/// Where a Koi Fish's blip is looked for when the loudest tile is lower (Hz).
+pub const HIGH_BAND: f64 = 60.0;
 
 /// A V-shaped time-frequency ridge (a whistle's): `f(t) = f_min +
 /// curvature (t − t0)²`, so a whistle of half-width `half` has span
@@ -101,7 +108,18 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
     // times its frequency (a whistle rises from its loudest, lowest part).
     let near: Vec<(f64, f64, f64)> =
         ridge.into_iter().filter(|(t, f, _)| (t - dt).abs() <= 0.4 && *f >= 0.8 * frequency && *f <= 3.0 * frequency).collect();
-    Ok(Seed { dt, frequency, q: image.q, track: track(&near), arches: arches(&win.d, sample_rate, frequency) })
+    let high = (frequency < HIGH_BAND)
+        .then(|| {
+            let search = |t: f64| (t - win.gps_centre).abs() <= 0.25;
+            let pixels = image.times.iter().enumerate().filter(|(_, t)| search(**t)).flat_map(|(i, t)| {
+                let column = &image.values[i * nf..(i + 1) * nf];
+                image.frequencies.iter().zip(column).filter(|(f, _)| **f >= HIGH_BAND).map(move |(f, e)| (*t, *f, *e))
+            });
+            pixels.fold(None, |best: Option<(f64, f64, f64)>, p| if best.is_none_or(|b| p.2 > b.2) { Some(p) } else { best })
+        })
+        .flatten()
+        .map(|(t, f, _)| (t - win.gps_centre, f));
+    Ok(Seed { dt, frequency, q: image.q, track: track(&near), arches: arches(&win.d, sample_rate, frequency), high })
 }
 
 /// Weighted least squares of `y = c0 + c1 t + c2 t²`.
