@@ -42,12 +42,12 @@ fn grid_only_flags(func: &Function) -> Vec<bool> {
 
 /// Evaluates the grid-only instructions (`grid_only`, from
 /// [`grid_only_flags`]), which depend on neither params nor inputs, handing
-/// each value's real parts to `visit`; a value is kept (and returned) only
+/// each value to `visit`; a value's real parts are kept (and returned) only
 /// where `visit` returns true, the others are left empty.
-fn evaluate_grid_only(func: &Function, grid_only: &[bool], mut visit: impl FnMut(usize, &interp::Tensor) -> bool) -> Vec<Vec<f64>> {
+fn evaluate_grid_only(func: &Function, grid_only: &[bool], visit: impl FnMut(usize, &interp::Tensor) -> bool) -> Vec<Vec<f64>> {
     let nan_params = vec![f64::NAN; func.params.len()];
     let no_inputs = vec![Vec::new(); func.inputs.len()];
-    let r = interp::interpret_streaming(func, &nan_params, &no_inputs, grid_only, |i, t| visit(i, t));
+    let r = interp::interpret_streaming(func, &nan_params, &no_inputs, grid_only, visit);
     r.values.into_iter().map(|t| t.into_iter().map(|z| z.re).collect()).collect()
 }
 
