@@ -378,9 +378,10 @@ pub enum DataCommand {
     /// Sine-Gaussian bursts in white noise (label 1) or noise alone (label 0):
     /// `x` of 256 samples at 256 Hz, f0 20-100 Hz, Q 3-12.
     Bursts(DataArgs),
-    /// Whitened 1 s segments at 4096 Hz of six classes (label 0 None, 1 Blip,
-    /// 2 Koi Fish, 3 Whistle, 4 Scratchy, 5 Chirp) in aLIGO noise, SNR 8-30
-    /// by default (Koi Fish 24-90); `x` is n × 4096.
+    /// Whitened 1 s segments at 4096 Hz of eight classes (label 0 None, 1 Blip,
+    /// 2 Koi Fish, 3 Whistle, 4 Scratchy, 5 Chirp, 6 Tomte, 7 Scattered
+    /// Light) in aLIGO noise, each class at its own SNR range after Gravity
+    /// Spy (see --snr); `x` is n × 4096.
     Glitch(DataArgs),
     /// Long strain at 4096 Hz in GWOSC HDF5 layout: coloured Gaussian noise
     /// from a PSD, glitches injected at known times (listed by --truth),
@@ -447,7 +448,13 @@ pub struct ExperimentArgs {
     /// `explain`: seed of the simulated strain.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Worker threads [default: all cores].
+    /// `explain`: the injections' optimal SNR range, e.g. 10..30, drawn
+    /// uniformly for every class [default: each class's own range after
+    /// Gravity Spy (Blip 6.5-100, Koi Fish 25-400, ...), log-uniformly,
+    /// from SNR 10 up].
+    #[arg(long, value_name = "LO..HI")]
+    pub snr: Option<String>,
+    /// `glitch`: worker threads [default: all cores]; `explain` runs on one.
     #[arg(long)]
     pub threads: Option<usize>,
 }
@@ -559,7 +566,10 @@ fn main() -> ExitCode {
                 out: a.out.unwrap_or_else(|| "results/glitch".into()),
                 threads: a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
             }),
-            ExperimentKind::Explain => explain::campaign(&a.out.unwrap_or_else(|| "results/explain".into()), a.per_class, a.seed),
+            ExperimentKind::Explain => {
+                let snr = a.snr.as_deref().map(gwml_lab::parse_range).transpose();
+                snr.and_then(|snr| explain::campaign(&a.out.unwrap_or_else(|| "results/explain".into()), a.per_class, a.seed, snr))
+            }
         },
         Command::Repl => {
             let failures = repl::run();

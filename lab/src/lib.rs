@@ -3,7 +3,7 @@
 //! line dispatches to them.
 //!
 //! - The glitch study: [`synth`] draws seeded synthetic datasets (whitened
-//!   glitches of six classes, bursts in noise) from the models in
+//!   glitches of eight classes, bursts in noise) from the models in
 //!   `lab/models/glitch/`; [`experiment`] is `gwml experiment glitch` (a
 //!   rule-based filter, a CNN and the differentiable template bank, trained
 //!   and scored on the same splits); [`generator`] is the learned glitch

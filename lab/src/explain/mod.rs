@@ -17,11 +17,13 @@
 
 mod campaign;
 mod causes;
+mod rates;
 mod report;
 mod seeds;
 
 pub use campaign::*;
 pub use causes::*;
+pub use rates::*;
 pub use report::*;
 pub use seeds::*;
 
@@ -53,17 +55,25 @@ pub struct Family {
     /// Starting points for a seed: `dt` and the shape params (the scene's
     /// free params after `dt`, `snr` and `phi`).
     starts: fn(&Seed) -> Vec<Start>,
+    /// The highest frequency (Hz) its whitened templates carry energy at
+    /// within the bounds: the fit runs at the lowest rate whose Nyquist
+    /// frequency is above it ([`factor_for`]).
+    pub top: f64,
 }
 
 /// Every candidate, in the order of `explain.gw`.
 pub const FAMILIES: [Family; 7] = [
-    Family { scene: "blip", label: "Blip", starts: blip_starts },
-    Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts },
-    Family { scene: "whistle", label: "Whistle", starts: whistle_starts },
-    Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts },
-    Family { scene: "tomte", label: "Tomte", starts: tomte_starts },
-    Family { scene: "scattered_light", label: "Scattered Light", starts: scattered_light_starts },
-    Family { scene: "chirp", label: "Chirp", starts: chirp_starts },
+    Family { scene: "blip", label: "Blip", starts: blip_starts, top: f64::INFINITY },
+    Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts, top: f64::INFINITY },
+    Family { scene: "whistle", label: "Whistle", starts: whistle_starts, top: f64::INFINITY },
+    Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts, top: f64::INFINITY },
+    // f0 ≤ 75 Hz at Q ≥ 1: the envelope's spectrum has a 1/e half-width of
+    // √2 f0 / Q ≤ 106 Hz, so at 400 Hz it is down by e^-9.
+    Family { scene: "tomte", label: "Tomte", starts: tomte_starts, top: 400.0 },
+    // The third harmonic of fringes of at most 100 Hz.
+    Family { scene: "scattered_light", label: "Scattered Light", starts: scattered_light_starts, top: 400.0 },
+    // The inspiral ends at its ISCO: 191 Hz for the lightest binary of the bounds.
+    Family { scene: "chirp", label: "Chirp", starts: chirp_starts, top: 400.0 },
 ];
 
 /// Every combination of one value per axis, each at time offset `dt`.
@@ -79,8 +89,9 @@ fn scaled<const N: usize>(v: f64, factors: [f64; N]) -> [f64; N] {
     factors.map(|f| f * v)
 }
 
+// Symmetric, without drift.
 fn blip_starts(s: &Seed) -> Vec<Start> {
-    grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[2.5, 4.5, s.q.clamp(1.5, 12.0)]])
+    grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[2.5, 4.5, s.q.clamp(1.5, 12.0)], &[1.0], &[0.0]])
 }
 
 // Seeded from the blip when the loudest tile is above [`HIGH_BAND`];
@@ -117,21 +128,24 @@ fn scattered_light_starts(s: &Seed) -> Vec<Start> {
     grid(s.dt, &[&scaled(f, [0.8, 0.9, 1.0, 1.1, 1.25]), &[0.15, 0.25, 0.4, 0.6, 1.0, 1.6, 2.5], &[0.2], &[2.0]])
 }
 
-// Around the ridge's V if there is one; a coarse grid below the loudest
-// tile (a whistle is loudest near its lowest frequency, where it sweeps
-// slowest) at and either side of its time.
+// Around the ridge's V if there is one; a coarse grid of V's and inverted
+// V's turning near the loudest tile (a whistle is loudest at its vertex,
+// where it sweeps slowest) at and either side of its time. No wiggle.
 fn whistle_starts(s: &Seed) -> Vec<Start> {
     let f = s.frequency;
     let mut starts: Vec<Start> = [-0.1, 0.0, 0.1]
         .iter()
-        .flat_map(|o| grid(s.dt + o, &[&[0.7 * f, 0.85 * f, f], &[150.0, 350.0, 650.0], &[0.1, 0.2, 0.3]]))
+        .flat_map(|o| {
+            let v = grid(s.dt + o, &[&[0.7 * f, 0.85 * f, f], &[150.0, 350.0, 650.0], &[0.12, 0.25]]);
+            v.into_iter().chain(grid(s.dt + o, &[&[f, 1.2 * f], &[-150.0, -350.0, -650.0], &[0.12, 0.25]]))
+        })
         .collect();
     // Along the ridge, each half-width with the span the curvature implies.
     if let Some(t) = s.track {
         let halves = [0.08, 0.11, 0.14, 0.18, 0.22, 0.27, 0.33].into_iter().chain(t.half);
         for half in halves {
             let span = t.curvature * half * half;
-            starts.extend(grid(t.dt, &[&scaled(t.f_min, [0.98, 1.0, 1.02]), &scaled(span, [0.9, 1.0, 1.1]), &[half]]));
+            starts.extend(grid(t.dt, &[&scaled(t.f_turn, [0.98, 1.0, 1.02]), &scaled(span, [0.9, 1.0, 1.1]), &[half]]));
         }
     }
     starts
@@ -226,7 +240,8 @@ pub fn explain_at(explainer: &Explainer, w: &Whitened, gps: f64, band: (f64, f64
 
 /// The fit scenes, compiled once for a window and reused for every trigger.
 pub struct Explainer {
-    scenes: Vec<(Family, Scene)>,
+    /// Each family's scene and the divisor of the rate it runs at.
+    scenes: Vec<(Family, Scene, usize)>,
     samples: usize,
 }
 
@@ -323,14 +338,19 @@ impl Explainer {
             )));
         }
         let model = Model::from_source("lab/models/glitch/explain.gw", EXPLAIN_SOURCE)?;
-        let knobs = [
-            ("sample_rate", format!("{:?} Hz", o.sample_rate)),
-            ("window", format!("{:?} s", samples as f64 / o.sample_rate)),
-            ("f_low", format!("{:?} Hz", o.band.0)),
-            ("f_high", format!("{:?} Hz", o.band.1)),
-        ];
-        let options = Options { knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(), ..Options::default() };
-        let scenes = FAMILIES.iter().map(|f| Ok((*f, model.scene_with(Some(f.scene), options.clone())?))).collect::<Result<_, Error>>()?;
+        let compile = |family: &Family| {
+            let factor = factor_for(o.sample_rate, samples, family.top);
+            let rate = o.sample_rate / factor as f64;
+            let knobs = [
+                ("sample_rate", format!("{rate:?} Hz")),
+                ("window", format!("{:?} s", samples as f64 / o.sample_rate)),
+                ("f_low", format!("{:?} Hz", o.band.0)),
+                ("f_high", format!("{:?} Hz", o.band.1.min(0.5 * rate))),
+            ];
+            let options = Options { knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(), ..Options::default() };
+            Ok((*family, model.scene_with(Some(family.scene), options)?, factor))
+        };
+        let scenes = FAMILIES.iter().map(compile).collect::<Result<_, Error>>()?;
         Ok(Explainer { scenes, samples })
     }
 
@@ -348,7 +368,18 @@ impl Explainer {
         if let Some(i) = d.iter().position(|v| !v.is_finite()) {
             return Err(Error::Bind(format!("the whitened window has a non-finite sample at index {i}")));
         }
-        let mut fits = self.scenes.iter().map(|(family, scene)| fit_family(family, scene, d, psd, seed)).collect::<Result<Vec<_>, _>>()?;
+        let mut rates: Vec<Decimated> = Vec::new();
+        for &(_, _, factor) in &self.scenes {
+            if rates.iter().all(|r| r.factor != factor) {
+                rates.push(decimate(d, psd, factor));
+            }
+        }
+        let at = |factor: usize| rates.iter().find(|r| r.factor == factor).expect("every factor decimated");
+        let mut fits = self
+            .scenes
+            .iter()
+            .map(|(family, scene, factor)| fit_family(family, scene, at(*factor), seed))
+            .collect::<Result<Vec<_>, _>>()?;
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
         let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();
         Ok(Explanation { fits, noise_loss, samples: d.len() })
@@ -375,8 +406,10 @@ fn set(run: &mut Run, names: &[FreeParam], x: &[f64]) -> Result<(), Error> {
     Ok(())
 }
 
-/// Fits one family: starts, L-BFGS, Fisher matrix and evidence.
-fn fit_family(family: &Family, scene: &Scene, d: &[f64], psd: &[f64], seed: &Seed) -> Result<FamilyFit, Error> {
+/// Fits one family to the window at its rate: starts, L-BFGS, Fisher
+/// matrix and evidence, with the loss and model of the full-rate window.
+fn fit_family(family: &Family, scene: &Scene, window: &Decimated, seed: &Seed) -> Result<FamilyFit, Error> {
+    let (d, psd) = (&window.d, &window.psd);
     let mut run = scene.bind();
     run.input_real("d", d)?;
     run.input_real("psd", psd)?;
@@ -446,9 +479,10 @@ fn fit_family(family: &Family, scene: &Scene, d: &[f64], psd: &[f64], seed: &See
     set(&mut run, &free, &x)?;
     let prior: Vec<Option<(f64, f64)>> =
         bounds.iter().enumerate().map(|(i, b)| if i == 2 { Some((x[2] - PI, x[2] + PI)) } else { *b }).collect();
-    let loss = fit.minimum.loss;
+    let loss = fit.minimum.loss + window.cut_loss;
+    let samples = d.len() * window.factor;
     let score =
-        Score { loss, params: x.len(), evidence: laplace_evidence(loss, &x, &fit.fisher, &prior), bic: bic(loss, x.len(), d.len()) };
+        Score { loss, params: x.len(), evidence: laplace_evidence(loss, &x, &fit.fisher, &prior), bic: bic(loss, x.len(), samples) };
     let sigma = fit.covariance.as_ref().ok().map(|c| c.sigma.clone());
     let params = free
         .iter()
@@ -464,5 +498,6 @@ fn fit_family(family: &Family, scene: &Scene, d: &[f64], psd: &[f64], seed: &See
     let Value::RealArray(model) = run.forward()?.value("model")?.clone() else {
         return Err(Error::Bind(format!("the `{}` scene's `model` is not a real array", family.scene)));
     };
-    Ok(FamilyFit { family: *family, params, chi2_dof: 2.0 * loss / (d.len() - x.len()) as f64, score, model, evaluations: evaluations + 1 })
+    let model = interpolate(&model, window.factor);
+    Ok(FamilyFit { family: *family, params, chi2_dof: 2.0 * loss / (samples - x.len()) as f64, score, model, evaluations: evaluations + 1 })
 }

@@ -6,8 +6,9 @@
 //! - the loudest Q tile within 0.25 s of the window's centre gives a time,
 //!   a frequency and a Q;
 //! - the ridge of the loudest Q plane (the brightest row in each column)
-//!   fitted by a parabola `f(t) = f_min + span ((t − t0) / half)²` gives a
-//!   V-shaped track: its vertex and curvature `span / half²`, and a guess
+//!   fitted by a parabola `f(t) = f_turn + span ((t − t0) / half)²` gives a
+//!   V-shaped track (inverted when it bends down): its vertex and curvature
+//!   `span / half²`, and a guess
 //!   of `half` from the fall of the ridge's energy, `∝ exp(−2 (t − t0)² /
 //!   half²)` under a whistle's Gaussian envelope;
 //! - the energy envelope of the data band-passed around the tile's
@@ -32,7 +33,7 @@ pub struct Seed {
     pub frequency: f64,
     /// Its plane's Q.
     pub q: f64,
-    /// A V-shaped ridge, if the data show one.
+    /// A V-shaped ridge (or an inverted V), if the data show one.
     pub track: Option<Track>,
     /// A periodic energy envelope around the tile's frequency, if any.
     pub arches: Option<Arches>,
@@ -45,15 +46,15 @@ pub struct Seed {
 /// Where a Koi Fish's blip is looked for when the loudest tile is lower (Hz).
 pub const HIGH_BAND: f64 = 60.0;
 
-/// A V-shaped time-frequency ridge (a whistle's): `f(t) = f_min +
+/// A V-shaped time-frequency ridge (a whistle's): `f(t) = f_turn +
 /// curvature (t − t0)²`, so a whistle of half-width `half` has span
-/// `curvature half²`.
+/// `curvature half²` (an inverted V when the curvature is negative).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Track {
     /// Its vertex's time `t0` from the window's centre (s).
     pub dt: f64,
     /// Frequency at the vertex (Hz).
-    pub f_min: f64,
+    pub f_turn: f64,
     /// Hz per s².
     pub curvature: f64,
     /// The envelope's 1/e half-width (s), when the ridge's energy falls
@@ -104,10 +105,12 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
         })
         .collect();
     let (frequency, dt) = (image.peak.frequency, image.peak.time - win.gps_centre);
-    // The ridge near the loudest tile: within 0.4 s of it, from 0.8 to 3
-    // times its frequency (a whistle rises from its loudest, lowest part).
+    // The ridge near the loudest tile: within 0.4 s of it, from a third of
+    // its frequency to 3 times it (a whistle's arms leave its loudest part,
+    // the vertex, where it sweeps slowest: upward for a V, down for an
+    // inverted V).
     let near: Vec<(f64, f64, f64)> =
-        ridge.into_iter().filter(|(t, f, _)| (t - dt).abs() <= 0.4 && *f >= 0.8 * frequency && *f <= 3.0 * frequency).collect();
+        ridge.into_iter().filter(|(t, f, _)| (t - dt).abs() <= 0.4 && *f >= frequency / 3.0 && *f <= 3.0 * frequency).collect();
     let high = (frequency < HIGH_BAND)
         .then(|| {
             let search = |t: f64| (t - win.gps_centre).abs() <= 0.25;
@@ -136,7 +139,8 @@ fn parabola(points: &[(f64, f64, f64)]) -> Option<[f64; 3]> {
 }
 
 /// A V-shaped track through ridge points `(t, f, energy)`, if they bend
-/// upward; points more than 3 median deviations off a first fit are dropped.
+/// (upward, or downward for an inverted V); points more than 3 median
+/// deviations off a first fit are dropped.
 fn track(ridge: &[(f64, f64, f64)]) -> Option<Track> {
     if ridge.len() < 6 {
         return None;
@@ -151,13 +155,13 @@ fn track(ridge: &[(f64, f64, f64)]) -> Option<Track> {
         return None;
     }
     let [a, b, c] = parabola(&ridge)?;
-    if c <= 0.0 {
+    if c == 0.0 {
         return None;
     }
     let log_energy: Vec<(f64, f64, f64)> = ridge.iter().map(|&(t, _, e)| (t, e.ln(), 1.0)).collect();
     let half = parabola(&log_energy).filter(|p| p[2] < 0.0).map(|p| (-2.0 / p[2]).sqrt());
     let dt = -b / (2.0 * c);
-    Some(Track { dt, f_min: a - b * b / (4.0 * c), curvature: c, half }).filter(|t| t.f_min > 0.0 && t.dt.abs() < 0.5)
+    Some(Track { dt, f_turn: a - b * b / (4.0 * c), curvature: c, half }).filter(|t| t.f_turn > 0.0 && t.dt.abs() < 0.5)
 }
 
 /// The energy envelope of `x` band-passed around `f0`, and its arches.
