@@ -163,12 +163,13 @@ fn every_shape_parameter_has_a_correct_gradient() {
                param f0: Hz = 140.0\n  param q = 3.5\n  param t0: s = 0.5\n  param fh: Hz = 32.0\n  param lead: s = 0.03\n  \
                param fmin: Hz = 650.0\n  param fmax: Hz = 950.0\n  param half: s = 0.15\n  param rate: Hz = 18.0\n  param dur: s = 0.6\n  \
                param qh = 4.0\n  param tail = 2.0\n  param drift = 0.1\n  param asym = 1.7\n  \
-               param ff: Hz = 38.0\n  param fm: Hz = 0.8\n  param bounce = 0.3\n  \
-               output loss = sum(n * (blip(t, t0, f0, q, 1.0) \
+               param ff: Hz = 38.0\n  param fm: Hz = 0.8\n  param bounce = 0.3\n  param wig: Hz = 120.0\n  param wob = 0.15\n  \
+               output loss = sum(n * (blip(t, t0, f0, q, 1.0) + blip(t, t0, 1.3 * f0, q, 1.0, asym: 0.6 * asym, drift: -drift) \
                + koi_fish(t, t0, f0, q, 1.0, f_head: fh, lead: lead, q_head: qh, tail: tail, drift: drift) \
-               + whistle(t, t0, fmin, fmax, half, 1.0) + scratchy(t, t0, f0, rate, dur, 1.0) + tomte(t, t0, 0.3 * f0, q, asym, 1.0) \
+               + whistle(t, t0, fmin, fmax, half, 1.0, wiggle: wig) + scratchy(t, t0, f0, rate, dur, 1.0, wobble: wob) \
+               + tomte(t, t0, 0.3 * f0, q, asym, 1.0) \
                + scattered_light(t, t0, ff, fm, bounce, dur, 1.0)))\n  \
-               grad loss wrt [f0, q, t0, fh, lead, fmin, fmax, half, rate, dur, qh, tail, drift, asym, ff, fm, bounce]\n}\n";
+               grad loss wrt [f0, q, t0, fh, lead, fmin, fmax, half, rate, dur, qh, tail, drift, asym, ff, fm, bounce, wig, wob]\n}\n";
     let model = Model::from_source("grad.gw", src).unwrap_or_else(|e| panic!("{e}"));
     let scene = model.scene(None).unwrap();
     let mut run = scene.bind();
@@ -191,6 +192,8 @@ fn every_shape_parameter_has_a_correct_gradient() {
         ("ff", 38.0),
         ("fm", 0.8),
         ("bounce", 0.3),
+        ("wig", 120.0),
+        ("wob", 0.15),
     ] {
         let g = out.grad("loss", name).unwrap();
         let h = 1e-7 * f64::max(x0, 1e-3);
