@@ -14,6 +14,10 @@
 //! 3. takes the Fisher matrix at the best fit (`runtime::fit::fit_run`), its
 //!    1σ errors, χ²/dof and the Laplace evidence, with the phase's prior a
 //!    full period around its estimate.
+//!
+//! A family whose templates stay at low frequencies runs all three at a
+//! fraction of the data's rate, with the full window's likelihood
+//! ([`Family::top`], `rates.rs`).
 
 mod campaign;
 mod causes;
@@ -67,8 +71,8 @@ pub const FAMILIES: [Family; 7] = [
     Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts, top: f64::INFINITY },
     Family { scene: "whistle", label: "Whistle", starts: whistle_starts, top: f64::INFINITY },
     Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts, top: f64::INFINITY },
-    // f0 ≤ 75 Hz at Q ≥ 1: the envelope's spectrum has a 1/e half-width of
-    // √2 f0 / Q ≤ 106 Hz, so at 400 Hz it is down by e^-9.
+    // f0 ≤ 75 Hz at Q ≥ 1.2: the envelope's spectrum has a 1/e half-width
+    // of √2 f0 / Q ≤ 88 Hz, so at 400 Hz it is down by e^-13.
     Family { scene: "tomte", label: "Tomte", starts: tomte_starts, top: 400.0 },
     // The third harmonic of fringes of at most 100 Hz.
     Family { scene: "scattered_light", label: "Scattered Light", starts: scattered_light_starts, top: 400.0 },
