@@ -52,8 +52,9 @@ pub fn decimate(d: &[f64], psd: &[f64], factor: usize) -> Decimated {
     }
     let mut planner = RealFftPlanner::<f64>::new();
     let mut input = d.to_vec();
-    let mut spectrum = planner.plan_fft_forward(n).make_output_vec();
-    planner.plan_fft_forward(n).process(&mut input, &mut spectrum).expect("buffers sized by the plan");
+    let forward = planner.plan_fft_forward(n);
+    let mut spectrum = forward.make_output_vec();
+    forward.process(&mut input, &mut spectrum).expect("buffers sized by the plan");
     // Bins 0..m/2 (the lower rate's Nyquist bin stays empty).
     let mut kept: Vec<Complex64> = spectrum[..m / 2 + 1].to_vec();
     kept[m / 2] = Complex64::new(0.0, 0.0);
