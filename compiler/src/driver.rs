@@ -309,11 +309,12 @@ type Pass = (&'static str, fn(&Function) -> Function);
 
 /// The passes from the checked IR to what codegen compiles, in order.
 /// Then [`finish`] stages the result and runs [`LATE_PASSES`] on each part.
-const GRADIENT_PASSES: [Pass; 6] = [
+const GRADIENT_PASSES: [Pass; 7] = [
     ("prune", passes::prune),
     ("relbin", passes::relbin),
     ("cutsum", passes::cutsum),
     ("multiband", passes::multiband),
+    ("split_powers", passes::split_powers),
     ("adjoint", passes::adjoint),
     ("simplify", passes::simplify),
 ];
@@ -385,12 +386,13 @@ fn run_pass((name, pass): Pass, input: &Function, verify: bool, times: &mut Pass
 /// keeping the IR after pruning, after the adjoint and at the end.
 pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, PipelineError> {
     let mut times = PassTimes::default();
-    let [prune, relbin, cutsum, multiband, adjoint, simplify] = GRADIENT_PASSES;
+    let [prune, relbin, cutsum, multiband, split_powers, adjoint, simplify] = GRADIENT_PASSES;
     let pruned = run_pass(prune, &checked, verify, &mut times)?;
     let pruned = run_pass(relbin, &pruned, verify, &mut times)?;
     let pruned = run_pass(cutsum, &pruned, verify, &mut times)?;
     let pruned = run_pass(multiband, &pruned, verify, &mut times)?;
-    let adjoint = run_pass(adjoint, &pruned, verify, &mut times)?;
+    let split = run_pass(split_powers, &pruned, verify, &mut times)?;
+    let adjoint = run_pass(adjoint, &split, verify, &mut times)?;
     let simplified = run_pass(simplify, &adjoint, verify, &mut times)?;
     let kernel = finish(simplified, verify, &mut times)?;
     let optimized = kernel.whole.clone();

@@ -220,6 +220,13 @@ impl Builder {
             Op::Unary(UnOp::Conj, a) => match self.func.insts[a.index()].op {
                 Op::Unary(UnOp::ToComplex, _) => Some(a),
                 Op::Unary(UnOp::Conj, x) => Some(x),
+                // conj(a·b) = conj(a)·conj(b), bit for bit, when both
+                // conjugates are at hand (a conjugate, or a real as
+                // complex): the adjoint of |d − h|² meets its own product.
+                Op::Binary(BinOp::Mul, x, y) => {
+                    let (cx, cy) = (self.conj_at_hand(x)?, self.conj_at_hand(y)?);
+                    Some(self.emit(Op::Binary(BinOp::Mul, cx, cy)))
+                }
                 _ => None,
             },
             // A reduction of a broadcast scalar: n·s for sums, s for max.
@@ -263,7 +270,72 @@ impl Builder {
             Op::Select(c, a, b) => self.const_truth(c).map(|k| if k { a } else { b }),
             _ => None,
         }
+        .or_else(|| self.move_sign_out(op))
         .or_else(|| self.sink_mask(op))
+    }
+
+    /// `v`'s conjugate if it costs nothing: `x` for `conj(x)`, `v` for a
+    /// real made complex.
+    fn conj_at_hand(&self, v: Value) -> Option<Value> {
+        match self.func.insts[v.index()].op {
+            Op::Unary(UnOp::Conj, x) => Some(x),
+            Op::Unary(UnOp::ToComplex, _) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// `x` for `v = −x`.
+    fn negated(&self, v: Value) -> Option<Value> {
+        match self.func.insts[v.index()].op {
+            Op::Unary(UnOp::Neg, x) => Some(x),
+            _ => None,
+        }
+    }
+
+    /// Moves negations outward, where they cancel, become a subtraction,
+    /// or reach a scalar: `−a·b = −(a·b)`, `a + −b = a − b`, `Σ −a = −Σ a`
+    /// (the adjoint makes many; a vector negation costs three
+    /// instructions per element). Rounding is symmetric, so each rewrite
+    /// gives the same bits, up to the sign of a zero.
+    fn move_sign_out(&mut self, op: &Op) -> Option<Value> {
+        let neg = |b: &mut Self, v: Value| b.emit(Op::Unary(UnOp::Neg, v));
+        match *op {
+            Op::Binary(o @ (BinOp::Mul | BinOp::Div), a, b) => match (self.negated(a), self.negated(b)) {
+                (Some(x), Some(y)) => Some(self.emit(Op::Binary(o, x, y))),
+                (Some(x), None) => {
+                    let v = self.emit(Op::Binary(o, x, b));
+                    Some(neg(self, v))
+                }
+                (None, Some(y)) => {
+                    let v = self.emit(Op::Binary(o, a, y));
+                    Some(neg(self, v))
+                }
+                (None, None) => None,
+            },
+            Op::Binary(BinOp::Add, a, b) => match (self.negated(a), self.negated(b)) {
+                (Some(x), Some(y)) => {
+                    let v = self.emit(Op::Binary(BinOp::Add, x, y));
+                    Some(neg(self, v))
+                }
+                (Some(x), None) => Some(self.emit(Op::Binary(BinOp::Sub, b, x))),
+                (None, Some(y)) => Some(self.emit(Op::Binary(BinOp::Sub, a, y))),
+                (None, None) => None,
+            },
+            Op::Binary(BinOp::Sub, a, b) => match (self.negated(a), self.negated(b)) {
+                (_, Some(y)) => Some(self.emit(Op::Binary(BinOp::Add, a, y))),
+                (Some(x), None) => {
+                    let v = self.emit(Op::Binary(BinOp::Add, x, b));
+                    Some(neg(self, v))
+                }
+                (None, None) => None,
+            },
+            Op::Reduce(Reduce::Sum, a) | Op::Unary(UnOp::Re | UnOp::Im | UnOp::Conj, a) => {
+                let x = self.negated(a)?;
+                let inner = self.emit(op.map_operands(|_| x));
+                Some(neg(self, inner))
+            }
+            _ => None,
+        }
     }
 
     /// Whether `c` is `conj(z)`.

@@ -211,14 +211,16 @@ fn rule(b: &mut Builder, inst: Inst, z: Value, g: Value, active: &[bool]) -> Vec
                     }
                 }
                 BinOp::Div => {
+                    // x̄ = g / conj(y) and ȳ = −g · conj(z / y) = −x̄ · conj(z):
+                    // one division serves both.
+                    let cy = conj(b, y);
+                    let gx = b.div(g, cy);
                     if want(x) {
-                        let cy = conj(b, y);
-                        out.push((x, b.div(g, cy)));
+                        out.push((x, gx));
                     }
                     if want(y) {
-                        let zy = b.div(z, y);
-                        let czy = conj(b, zy);
-                        let t = b.mul(g, czy);
+                        let cz = conj(b, z);
+                        let t = b.mul(gx, cz);
                         out.push((y, b.neg(t)));
                     }
                 }

@@ -36,7 +36,7 @@ pub use multiband::multiband;
 pub use prune::prune;
 pub use relbin::relbin;
 pub use rescale::rescale;
-pub use specialise::specialise;
+pub use specialise::{specialise, split_powers};
 
 use crate::ir::builder::Builder;
 use crate::ir::{Function, Value};

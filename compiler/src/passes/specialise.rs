@@ -21,6 +21,11 @@
 //!   more values (TaylorF2's `v⁵` in its phase's adjoint), one reciprocal
 //!   per bin serves them all.
 //!
+//! - a `select` whose condition is a grid-only array that holds one truth
+//!   value over the whole grid (the `psd > 0` guard of an inner product
+//!   with a positive PSD) is that branch: no compare, select or table read
+//!   per bin.
+//!
 //! Then every real grid-only array that a non-grid-only instruction (or a
 //! result) uses, and that costs more than a load, becomes a table.
 
@@ -55,31 +60,58 @@ fn evaluate_grid_only(func: &Function, grid_only: &[bool], visit: impl FnMut(usi
 /// Scenes whose grid-only values are too large to evaluate within
 /// [`interp::EVAL_BUDGET`] are left as they are.
 pub fn specialise(func: &Function) -> Function {
-    let longest = func.grids.iter().map(|g| g.len).max().unwrap_or(1);
-    let folded = grid_only_flags(func).iter().filter(|g| **g).count();
-    if folded.saturating_mul(longest) > interp::EVAL_BUDGET {
+    if !within_budget(func) {
         return func.clone();
     }
-    let split = split_powers(func);
+    let split = rewrite_powers(func);
     tabulate(&split)
 }
 
-fn split_powers(func: &Function) -> Function {
+/// The splits of [`specialise`] alone, run before the adjoint: the adjoint
+/// of `s^c · a^c` goes to the scalar `s^c` through one sum, where that of
+/// `(s · a)^c` is a chain of products and quotients through every bin
+/// (TaylorF2's `v^k`, `v = (π M f)^(1/3)`).
+pub fn split_powers(func: &Function) -> Function {
+    if !within_budget(func) {
+        return func.clone();
+    }
+    rewrite_powers(func)
+}
+
+/// Whether the interpreter may evaluate `func`'s grid-only values.
+fn within_budget(func: &Function) -> bool {
+    let longest = func.grids.iter().map(|g| g.len).max().unwrap_or(1);
+    let folded = grid_only_flags(func).iter().filter(|g| **g).count();
+    folded.saturating_mul(longest) <= interp::EVAL_BUDGET
+}
+
+fn rewrite_powers(func: &Function) -> Function {
     let grid_only = grid_only_flags(func);
     // Evaluated only if a rewrite asks whether an array is positive: on long
     // grids (a 72 s chunk at 4096 Hz) the interpreter is most of the time
     // a scene takes to compile.
-    let positives = std::cell::OnceCell::new();
-    let positives = || {
-        positives.get_or_init(|| {
+    // Per grid-only value: whether every element is positive, and for a
+    // condition, the one truth value it holds everywhere, if any.
+    let facts = std::cell::OnceCell::new();
+    let facts = || {
+        facts.get_or_init(|| {
             let mut positive = vec![false; func.insts.len()];
+            let mut uniform = vec![None; func.insts.len()];
             evaluate_grid_only(func, &grid_only, |i, t| {
                 positive[i] = t.iter().all(|x| x.re > 0.0);
+                if func.insts[i].ty.elem == Elem::Bool {
+                    let truth = |x: &num_complex::Complex64| x.re != 0.0;
+                    uniform[i] = match t.first().map(truth) {
+                        Some(first) if t.iter().all(|x| truth(x) == first) => Some(first),
+                        _ => None,
+                    };
+                }
                 false
             });
-            positive
+            (positive, uniform)
         })
     };
+    let positives = || &facts().0;
     let mut header = func.clone();
     header.insts.clear();
     let mut b = Builder::new(header, true);
@@ -102,7 +134,25 @@ fn split_powers(func: &Function) -> Function {
     let mut reciprocals: std::collections::HashMap<Value, Value> = std::collections::HashMap::new();
     for inst in &func.insts {
         let mut rewritten = None;
-        if let Op::PowConst(base, c) = inst.op {
+        if let Op::Select(c, x, y) = inst.op {
+            // A condition that holds one truth value on the whole grid.
+            if grid_only[c.index()] && matches!(func.ty(c).shape, Shape::Grid(_)) {
+                rewritten = facts().1[c.index()].map(|truth| map[if truth { x } else { y }.index()]);
+            }
+        }
+        if let (Op::PowConst(base, c), Shape::Grid(g)) = (inst.op, inst.ty.shape) {
+            // A power of a value already split: (s^±1 · a)^c = s^(±c) · a^c.
+            if let Some(&(sp, arr, sign)) = products.get(&map[base.index()]) {
+                let cf = f64::from_bits(c);
+                let spc = b.emit(Op::PowConst(sp, (sign * cf).to_bits()));
+                let sb = b.emit(Op::Broadcast(spc, g));
+                let ac = b.emit(Op::PowConst(arr, c));
+                let v = b.mul(sb, ac);
+                products.insert(v, (spc, ac, 1.0));
+                rewritten = Some(v);
+            }
+        }
+        if let (Op::PowConst(base, c), None) = (inst.op, rewritten) {
             if let Op::Binary(op @ (BinOp::Mul | BinOp::Div), x, y) = func.insts[base.index()].op {
                 // (s·a)^c, (a·s)^c, (a/s)^c, (s/a)^c with a grid-only and positive.
                 let pick = match (scalar_of(x), scalar_of(y)) {
@@ -237,8 +287,14 @@ fn tabulate(func: &Function) -> Function {
     let mut out = func.clone();
     for (i, grid) in tabulated.iter().enumerate() {
         if let Some(g) = grid {
-            out.tables.push(Table { grid: *g, data: std::mem::take(&mut values[i]) });
-            out.insts[i].op = Op::Table(out.tables.len() as u32 - 1);
+            // Equal arrays (a PSD reached by two paths) share one table.
+            let data = std::mem::take(&mut values[i]);
+            let same = out.tables.iter().position(|t| t.grid == *g && t.data == data);
+            let index = same.unwrap_or_else(|| {
+                out.tables.push(Table { grid: *g, data });
+                out.tables.len() - 1
+            });
+            out.insts[i].op = Op::Table(index as u32);
         }
     }
     let pruned = super::prune(&out);
