@@ -200,7 +200,7 @@ scene powers_demo {
   param m = 2.0
   let v = cbrt(m * f / 1 Hz)
   let phase = (1.0 + 0.3 * v ^ 2.0 - 0.1 * v ^ 3.0) / v ^ 5.0
-  let h = cis(phase)
+  let h = -(m * (f / 100 Hz)) * cis(phase)
   output loss = 0.5 * inner(d - h, d - h, 1.0 + f / 100 Hz, 1 Hz)
   grad loss wrt [m]
 }
@@ -229,7 +229,8 @@ fn powers_of_a_scaled_grid_are_split_before_the_adjoint() {
 #[test]
 fn the_gradient_kernel_has_no_per_bin_negation_or_psd_guard() {
     let pl = pipeline("powers_demo.gw", POWERS_DEMO, "powers_demo");
-    // The adjoint's negations move out to scalars (or into a subtraction).
+    // The adjoint's negations move out to scalars (or into a subtraction),
+    // and the amplitude's −(m·f) is (−m)·f.
     assert!(!has_per_bin(&pl.optimized, |op| matches!(op, Op::Unary(UnOp::Neg, _))), "{}", pl.optimized);
     // `inner` guards `psd > 0`: with a positive PSD the select goes.
     assert!(has_per_bin(&pl.pruned, |op| matches!(op, Op::Select(..))), "{}", pl.pruned);

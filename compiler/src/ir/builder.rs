@@ -207,6 +207,18 @@ impl Builder {
             }
             Op::Unary(UnOp::Neg, a) => match self.func.insts[a.index()].op {
                 Op::Unary(UnOp::Neg, x) => Some(x),
+                // −(s·y) = (−s)·y for a broadcast scalar s: the negation
+                // costs one scalar operation instead of one per bin.
+                Op::Binary(BinOp::Mul, x, y) => {
+                    let (s, g, other) = match (self.func.insts[x.index()].op, self.func.insts[y.index()].op) {
+                        (Op::Broadcast(s, g), _) => (s, g, y),
+                        (_, Op::Broadcast(s, g)) => (s, g, x),
+                        _ => return None,
+                    };
+                    let ns = self.emit(Op::Unary(UnOp::Neg, s));
+                    let nb = self.emit(Op::Broadcast(ns, g));
+                    Some(self.emit(Op::Binary(BinOp::Mul, nb, other)))
+                }
                 _ => None,
             },
             Op::Unary(UnOp::Re, a) => match self.func.insts[a.index()].op {
