@@ -56,7 +56,7 @@ fn main() {
     let variants = [
         ("", "w1_strain", "cut at the ISCO"),
         ("_full", "w1_strain_full", "no cut, every bin"),
-        ("_banded", "w1_strain_banded", "no cut, multibanded (1e-3 rad)"),
+        ("_banded", "w1_strain_banded", "no cut, multibanded (2e-3 rad)"),
         ("_relbin", "w1_strain_full", "no cut, likelihood by relative binning (100 bins)"),
     ];
     for (suffix, strain, what) in variants {

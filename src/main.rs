@@ -488,7 +488,7 @@ pub struct TradeoffArgs {
     #[arg(long, value_name = "MATH,...", value_delimiter = ',', value_parser = setting::<MathMode>)]
     pub math: Vec<MathMode>,
     /// Multibanding tolerances to sweep, comma-separated: `off` or the
-    /// largest phase error in radians (`off,1e-3`) [default: off, 1e-2,
+    /// largest phase error in radians (`off,1e-3`) [default: off, 1e-2, 2e-3,
     /// 1e-3 and 1e-4 for scenes with a waveform phase over a grid, else off].
     #[arg(long, value_name = "TOL,...", value_delimiter = ',', value_parser = setting::<Multiband>)]
     pub multiband: Vec<Multiband>,

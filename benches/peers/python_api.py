@@ -7,7 +7,7 @@
 `pip install ./python`). Pinned to one core. Measures, as medians:
 - the call overhead of `Scene.value_and_grad` from Python over the same
   call made from Rust (`Scene._time_native`), on W1 full band and with
-  multibanding (1e-3 rad) and relative binning (100 bins);
+  multibanding (2e-3 rad) and relative binning (100 bins);
 - `jax.jit(jax.grad(f))` through `gwml.jax.function` against calling
   `Scene.value_and_grad` directly;
 - W1 full-band value and gradient from Python against ripplegw's

@@ -168,8 +168,8 @@ pub fn all_configs() -> Vec<Config> {
 
 /// The multibanding tolerances `gwml tradeoff` sweeps by default (radians
 /// of phase error; the mismatch is below half the square).
-pub const DEFAULT_MULTIBAND: [Multiband; 4] =
-    [Multiband::Off, Multiband::Tolerance(1e-2), Multiband::Tolerance(1e-3), Multiband::Tolerance(1e-4)];
+pub const DEFAULT_MULTIBAND: [Multiband; 5] =
+    [Multiband::Off, Multiband::Tolerance(1e-2), Multiband::Tolerance(2e-3), Multiband::Tolerance(1e-3), Multiband::Tolerance(1e-4)];
 
 /// The bin counts `gwml tradeoff` sweeps by default for relative binning
 /// (jimgw's default is 100).
