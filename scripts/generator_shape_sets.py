@@ -75,20 +75,21 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 @functools.lru_cache(maxsize=None)
-def _real_fit_table():
+def _real_fit_table(label="Blip"):
     import csv
 
     rows = csv.DictReader(open(os.path.join(ROOT, "lab/data/real_glitch_fits.csv")))
-    blips = [r for r in rows if r["label"] == "Blip" and r["ifo"] in ("H1", "L1")]
-    held_out = [(float(r["f0"]), float(r["gbw"])) for r in blips[1::2]]
+    fits = [r for r in rows if r["label"] == label and r["ifo"] in ("H1", "L1")]
+    held_out = [(float(r["f0"]), float(r["gbw"])) for r in fits[1::2]]
     asd = np.zeros(N // 2 + 1)
     for r in csv.DictReader(open(os.path.join(ROOT, "lab/data/o3_asd.csv"))):
         asd[int(r["frequency_hz"])] = float(r["asd_per_sqrt_hz"])
     return held_out, asd
 
 
-def realfit(rng, t):
-    held_out, asd = _real_fit_table()
+def realfit(rng, t, label="Blip"):
+    """A held-out real fit of Gravity Spy class `label` (Blip, Tomte, Koi_Fish)."""
+    held_out, asd = _real_fit_table(label)
     f0, gbw = held_out[rng.integers(len(held_out))]
     f = np.fft.rfftfreq(N, 1 / FS)
     inband = asd > 0

@@ -113,7 +113,7 @@ fn per_class_snr_and_real_fit_shapes() {
     let snr = |r: &Vec<&str>| r[2].parse::<f64>().unwrap();
     let koi: Vec<f64> = rows.iter().filter(|r| r[1] == "Koi Fish").map(snr).collect();
     let blips: Vec<&Vec<&str>> = rows.iter().filter(|r| r[1] == "Blip").collect();
-    assert!(koi.len() >= 10 && koi.iter().all(|s| (25.0..=400.0).contains(s)), "Koi Fish SNRs {koi:?}");
+    assert!(koi.len() >= 10 && koi.iter().all(|s| (12.0..=400.0).contains(s)), "Koi Fish SNRs {koi:?}");
     assert!(blips.iter().all(|r| (6.5..=100.0).contains(&snr(r))));
     let real = blips.iter().filter(|r| r[f0].is_empty()).count();
     assert!(real >= 3 && real < blips.len(), "{real} of {} Blips without formula params", blips.len());

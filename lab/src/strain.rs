@@ -86,12 +86,49 @@ pub struct StrainOptions {
 pub struct Injection {
     /// GPS time of the glitch's centre (the chirp's merger).
     pub gps_time: f64,
+    /// GPS span holding the central [`SPAN_ENERGY`] of the signal's
+    /// whitened energy (20 Hz–2 kHz): where a search may place the loudest
+    /// moment of a long glitch (a Scratchy's arches, a Whistle's sweep).
+    pub span: (f64, f64),
     /// Index into [`GLITCH_CLASSES`].
     pub class: usize,
     /// Optimal SNR.
     pub snr: f64,
     /// The shape params the signal scene was given.
     pub params: Vec<(&'static str, f64)>,
+}
+
+/// Fraction of an injection's whitened energy inside [`Injection::span`].
+pub const SPAN_ENERGY: f64 = 0.9;
+
+impl Injection {
+    /// Whether a trigger at `time` marks this injection: within `tolerance`
+    /// seconds of its [`span`](Injection::span) (for a short glitch, of its
+    /// centre).
+    pub fn is_marked_by(&self, time: f64, tolerance: f64) -> bool {
+        time >= self.span.0 - tolerance && time <= self.span.1 + tolerance
+    }
+}
+
+/// The span (sample indices, end exclusive) of `w` holding the central
+/// `fraction` of its energy Σ w².
+fn energy_span(w: &[f64], fraction: f64) -> (usize, usize) {
+    let total: f64 = w.iter().map(|v| v * v).sum();
+    let tail = 0.5 * (1.0 - fraction) * total;
+    let mut acc = 0.0;
+    let start = w.iter().position(|v| {
+        acc += v * v;
+        acc > tail
+    });
+    acc = 0.0;
+    let end = w.iter().rposition(|v| {
+        acc += v * v;
+        acc > tail
+    });
+    match (start, end) {
+        (Some(a), Some(b)) if a <= b => (a, b + 1),
+        _ => (w.len() / 2, w.len() / 2 + 1),
+    }
 }
 
 /// Simulates the strain and lists what was injected.
@@ -249,7 +286,21 @@ fn inject<R: Rng>(
         for (x, v) in series.samples[window_start..window_start + window].iter_mut().zip(&h) {
             *x += scale * v;
         }
-        injections.push(Injection { gps_time: series.gps_start + window_start as f64 / fs + centre, class, snr, params });
+        // The whitened signal (20 Hz-2 kHz), for the span of its energy.
+        for (k, x) in spectrum.iter_mut().enumerate() {
+            *x = if (20..=2000).contains(&k) { *x / psd_1hz[k].sqrt() } else { 0.0.into() };
+        }
+        let mut whitened = ifft.make_output_vec();
+        ifft.process(&mut spectrum, &mut whitened).map_err(|e| Error::Bind(format!("inverse FFT failed: {e}")))?;
+        let (a, b) = energy_span(&whitened, SPAN_ENERGY);
+        let at = |i: usize| series.gps_start + (window_start + i) as f64 / fs;
+        injections.push(Injection {
+            gps_time: series.gps_start + window_start as f64 / fs + centre,
+            span: (at(a), at(b - 1)),
+            class,
+            snr,
+            params,
+        });
     }
     Ok(injections)
 }
@@ -278,7 +329,8 @@ fn coloured(
     Ok(h)
 }
 
-/// Writes the injections as CSV: `gps_time,label,snr`, then one column per
+/// Writes the injections as CSV: `gps_time,label,snr,start,end` (the
+/// GPS span of [`Injection::span`]), then one column per
 /// shape param of any injected class (in order of first appearance), empty
 /// where an injection's class has no such param.
 pub fn write_truth(path: &std::path::Path, injections: &[Injection]) -> Result<(), Error> {
@@ -294,11 +346,11 @@ fn truth_csv(injections: &[Injection]) -> String {
             names.push(p.0);
         }
     }
-    let mut text = String::from("gps_time,label,snr");
+    let mut text = String::from("gps_time,label,snr,start,end");
     names.iter().for_each(|n| text.push_str(&format!(",{n}")));
     text.push('\n');
     for i in injections {
-        let _ = write!(text, "{:.6},{},{:.4}", i.gps_time, GLITCH_CLASSES[i.class], i.snr);
+        let _ = write!(text, "{:.6},{},{:.4},{:.6},{:.6}", i.gps_time, GLITCH_CLASSES[i.class], i.snr, i.span.0, i.span.1);
         for n in &names {
             text.push(',');
             if let Some(p) = i.params.iter().find(|p| p.0 == *n) {
@@ -327,14 +379,27 @@ mod tests {
 
     #[test]
     fn truth_columns_line_up_across_classes() {
-        let blip = Injection { gps_time: 10.0, class: 1, snr: 12.0, params: vec![("f0", 100.0), ("q", 4.0)] };
-        let whistle = Injection { gps_time: 20.0, class: 3, snr: 15.0, params: vec![("f_min", 500.0), ("q", 9.0)] };
-        let generated = Injection { gps_time: 30.0, class: 1, snr: 20.0, params: vec![] };
+        let blip = Injection { gps_time: 10.0, span: (9.99, 10.01), class: 1, snr: 12.0, params: vec![("f0", 100.0), ("q", 4.0)] };
+        let whistle = Injection { gps_time: 20.0, span: (19.8, 20.2), class: 3, snr: 15.0, params: vec![("f_min", 500.0), ("q", 9.0)] };
+        let generated = Injection { gps_time: 30.0, span: (29.9, 30.1), class: 1, snr: 20.0, params: vec![] };
         let text = truth_csv(&[blip, whistle, generated]);
         let lines: Vec<&str> = text.lines().collect();
-        assert_eq!(lines[0], "gps_time,label,snr,f0,q,f_min");
-        assert_eq!(lines[1], "10.000000,Blip,12.0000,100,4,");
-        assert_eq!(lines[2], "20.000000,Whistle,15.0000,,9,500");
-        assert_eq!(lines[3], "30.000000,Blip,20.0000,,,");
+        assert_eq!(lines[0], "gps_time,label,snr,start,end,f0,q,f_min");
+        assert_eq!(lines[1], "10.000000,Blip,12.0000,9.990000,10.010000,100,4,");
+        assert_eq!(lines[2], "20.000000,Whistle,15.0000,19.800000,20.200000,,9,500");
+        assert_eq!(lines[3], "30.000000,Blip,20.0000,29.900000,30.100000,,,");
+    }
+
+    #[test]
+    fn the_energy_span_holds_the_central_energy() {
+        // A box of ones from 100 to 199 in 1000 zeros: 2.5 % of its energy
+        // lies in its first 2.5 samples and 2.5 % in its last 2.5.
+        let mut w = vec![0.0; 1000];
+        w[100..200].iter_mut().for_each(|v| *v = 1.0);
+        assert_eq!(energy_span(&w, 0.95), (102, 198));
+        // A single spike is its own span.
+        let mut spike = vec![0.0; 64];
+        spike[10] = 3.0;
+        assert_eq!(energy_span(&spike, 0.9), (10, 11));
     }
 }

