@@ -96,9 +96,14 @@ fn bad_arguments_are_one_line_errors() {
     fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--snr", "loud"]), "expected a range LO..HI, got `loud`");
     let csv = temp("bad.txt").display().to_string();
     fails_with(&gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--out", &csv]), "write .csv or .json");
+    let triggers = temp("sig.csv").display().to_string();
+    fails_with(
+        &gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--out", &triggers, "--min-significance", "0"]),
+        "--min-significance must be positive and finite, got 0",
+    );
 }
 
-/// `--snr class` draws each class at its own range (Koi Fish 25-400, the
+/// `--snr class` draws each class at its own range (Koi Fish 12-400, the
 /// others from 6.5) and `--real-fits` gives some Blips a real fit's shape,
 /// whose truth rows carry no formula params.
 #[test]

@@ -88,6 +88,7 @@ def scan(
     *,
     frame: Optional[bool] = None,
     snr_threshold: float = 7.5,
+    min_significance: Optional[float] = None,
     fmin: float = 10.0,
     fmax: float = 2048.0,
     psd_stretch: float = 128.0,
@@ -104,7 +105,8 @@ def scan(
     ``paths`` is one GWOSC HDF5 file or several of one detector
     (consecutive files are joined; a gap between files is skipped), or one
     ``.npy`` with ``sample_rate`` and ``gps_start``. The options are
-    ``gwml scan``'s flags; ``classify=False`` is ``--no-classify``. The rows
+    ``gwml scan``'s flags (``min_significance=None`` takes the CLI's
+    default); ``classify=False`` is ``--no-classify``. The rows
     are the CLI's, in time order, with the same columns (``gps_time``,
     ``ifo``, ``snr``, ``peak_frequency``, ``q``, ``duration``, ``label``,
     ``confidence``, ``start``, ``end``, ``f_start``, ``f_end``, ``tiles``
@@ -120,6 +122,7 @@ def scan(
     columns, _classes = _gwml.scan(
         [os.fspath(p) for p in paths],
         snr_threshold=snr_threshold,
+        min_significance=min_significance,
         fmin=fmin,
         fmax=fmax,
         psd_stretch=psd_stretch,

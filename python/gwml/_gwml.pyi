@@ -101,6 +101,7 @@ def scan(
     paths: Sequence[str],
     *,
     snr_threshold: float = 7.5,
+    min_significance: Optional[float] = None,
     fmin: float = 10.0,
     fmax: float = 2048.0,
     psd_stretch: float = 128.0,

@@ -19,12 +19,13 @@ use std::path::PathBuf;
 /// class) and the classifier's class names. The GIL is released while
 /// scanning.
 #[pyfunction]
-#[pyo3(signature = (paths, *, snr_threshold=7.5, fmin=10.0, fmax=2048.0, psd_stretch=128.0, fft_length=4.0, block=1024.0, threads=None, classify=true, sample_rate=None, gps_start=None, ifo="X1".to_string()))]
+#[pyo3(signature = (paths, *, snr_threshold=7.5, min_significance=None, fmin=10.0, fmax=2048.0, psd_stretch=128.0, fft_length=4.0, block=1024.0, threads=None, classify=true, sample_rate=None, gps_start=None, ifo="X1".to_string()))]
 #[allow(clippy::too_many_arguments)]
 pub fn scan<'py>(
     py: Python<'py>,
     paths: Vec<PathBuf>,
     snr_threshold: f64,
+    min_significance: Option<f64>,
     fmin: f64,
     fmax: f64,
     psd_stretch: f64,
@@ -48,7 +49,9 @@ pub fn scan<'py>(
     if !(block >= 64.0 && block.is_finite()) {
         return Err(bind_error(py, format!("block {block}: blocks of at least 64 s are needed")));
     }
-    let options = ScanOptions { snr_threshold, f_range: (fmin, fmax), psd_stretch, fft_length, ..ScanOptions::default() };
+    let defaults = ScanOptions::default();
+    let min_significance = min_significance.unwrap_or(defaults.min_significance);
+    let options = ScanOptions { snr_threshold, min_significance, f_range: (fmin, fmax), psd_stretch, fft_length, ..defaults };
     let result = py.detach(|| -> Result<_, String> {
         let sources: Vec<Source> = paths.iter().map(|p| Source::open(p, npy.as_ref())).collect::<Result<_, _>>().map_err(fail)?;
         let classifier = if classify { Some(Classifier::shipped().map_err(fail)?) } else { None };

@@ -63,6 +63,11 @@ def test_scan_without_classifier_and_bad_input(strain_files, tmp_path):
         gwml.scan(missing)
     with pytest.raises(gwml.RunError, match="at least 64 s"):
         gwml.scan(strain_files, block=10)
+    with pytest.raises(gwml.RunError, match="--min-significance must be positive"):
+        gwml.scan(strain_files, min_significance=0.0)
+    # A looser excess-power threshold lets noise windows through.
+    loose = gwml.scan(strain_files[0], block=64, classify=False, frame=False, min_significance=4.0)
+    assert len(loose["gps_time"]) > len(cols["gps_time"])
 
 
 def test_a_dask_map_over_files_gives_the_rows_of_one_call(strain_files):

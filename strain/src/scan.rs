@@ -199,7 +199,7 @@ impl Scanner {
         let positive = [
             ("--snr-threshold", o.snr_threshold),
             ("tile threshold", o.tile_threshold),
-            ("minimum significance", o.min_significance),
+            ("--min-significance", o.min_significance),
             ("FFT length", o.fft_length),
             ("PSD stretch", o.psd_stretch),
             ("chunk", o.chunk),
