@@ -28,6 +28,11 @@ use realfft::RealFftPlanner;
 
 /// Sample rate of simulated strain (that of the glitch signal scene).
 pub const SAMPLE_RATE: f64 = 4096.0;
+/// The band (Hz, which are the bins of an injected 1 s window) an
+/// injection's SNR, energy span and colouring are computed over: that of
+/// the glitch datasets.
+const SIGNAL_BAND: std::ops::RangeInclusive<usize> = 20..=2000;
+
 /// Length (s) of the cosine taper at each end of an injected 1 s window.
 pub const TAPER: f64 = 0.1;
 
@@ -278,7 +283,7 @@ fn inject<R: Rng>(
         let mut spectrum = fft.make_output_vec();
         fft.process(&mut input, &mut spectrum).map_err(|e| Error::Bind(format!("FFT failed: {e}")))?;
         let dt = 1.0 / fs;
-        let rho2: f64 = (20..=2000).map(|k| 4.0 * (spectrum[k] * dt).norm_sqr() / psd_1hz[k]).sum();
+        let rho2: f64 = SIGNAL_BAND.map(|k| 4.0 * (spectrum[k] * dt).norm_sqr() / psd_1hz[k]).sum();
         if !(rho2 > 0.0 && rho2.is_finite()) {
             return Err(Error::Bind(format!("a {} signal has no power in 20-2000 Hz", GLITCH_CLASSES[class])));
         }
@@ -288,7 +293,7 @@ fn inject<R: Rng>(
         }
         // The whitened signal (20 Hz-2 kHz), for the span of its energy.
         for (k, x) in spectrum.iter_mut().enumerate() {
-            *x = if (20..=2000).contains(&k) { *x / psd_1hz[k].sqrt() } else { 0.0.into() };
+            *x = if SIGNAL_BAND.contains(&k) { *x / psd_1hz[k].sqrt() } else { 0.0.into() };
         }
         let mut whitened = ifft.make_output_vec();
         ifft.process(&mut spectrum, &mut whitened).map_err(|e| Error::Bind(format!("inverse FFT failed: {e}")))?;
@@ -322,7 +327,7 @@ fn coloured(
     let mut spectrum = fft.make_output_vec();
     fft.process(&mut input, &mut spectrum).map_err(|e| Error::Bind(format!("FFT failed: {e}")))?;
     for (k, x) in spectrum.iter_mut().enumerate() {
-        *x *= if (20..=2000).contains(&k) { (psd_1hz[k] * fs / 2.0).sqrt() / 1e-21 / w.len() as f64 } else { 0.0 };
+        *x *= if SIGNAL_BAND.contains(&k) { (psd_1hz[k] * fs / 2.0).sqrt() / 1e-21 / w.len() as f64 } else { 0.0 };
     }
     let mut h = ifft.make_output_vec();
     ifft.process(&mut spectrum, &mut h).map_err(|e| Error::Bind(format!("inverse FFT failed: {e}")))?;
