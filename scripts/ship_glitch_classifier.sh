@@ -5,7 +5,7 @@
 # the glitch experiment's differentiable template bank + head, its best
 # method: results/glitch/README.md).
 #
-#     bash scripts/ship_glitch_classifier.sh            # ~7 minutes on 2 cores
+#     bash scripts/ship_glitch_classifier.sh            # ~15 minutes on 2 cores
 #
 # Data: `gwml data glitch --centred`: the benchmark population of eight
 # classes (lab/src/synth/population.rs: shapes, SNR ranges and noise after
@@ -21,7 +21,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MODEL=${MODEL:-template_net}
-N_TRAIN=${N_TRAIN:-20000}
+N_TRAIN=${N_TRAIN:-40000}
 EPOCHS=${EPOCHS:-10}
 WORK=${WORK:-$(mktemp -d)}
 mkdir -p "$WORK"

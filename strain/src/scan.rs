@@ -31,9 +31,13 @@ use std::f64::consts::{LN_2, PI};
 /// Durations (s) over which tile energies are summed as excess power.
 const EXCESS_POWER_WINDOWS: [f64; 4] = [0.125, 0.25, 0.5, 1.0];
 
-/// Excess power is summed in the planes up to this Q (long glitches are
-/// broadband: Scratchy's arches, a Whistle's sweep).
-const EXCESS_POWER_MAX_Q: f64 = 12.0;
+/// Excess power is summed in the planes up to this Q: long glitches spread
+/// their energy (Scratchy's arches, a Whistle's sweep). Q 22.6 is included
+/// for the slow part of a Whistle's sweep: it found 1.0-1.5 % more of the
+/// injections of `gwml data strain` files (seeds 42-44; most of them
+/// Whistles at SNR 9-12) for 0.02-0.05 more noise triggers per 100 s
+/// (README, "Scanning real strain").
+const EXCESS_POWER_MAX_Q: f64 = 23.0;
 
 /// The relative variance of a Welch median PSD estimate per frequency bin
 /// is about this over the number of segments K: the median of K
