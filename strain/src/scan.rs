@@ -302,6 +302,7 @@ impl Scanner {
         }
         let welch = Welch::new(fs, WelchOptions::seconds(o.fft_length, fs))?;
         let clock = StageClock::default();
+        let failing_sums = FailingSums::default();
         let results: Vec<Result<Vec<Row>, Error>> = chunks
             .par_iter()
             .map_init(
@@ -309,7 +310,7 @@ impl Scanner {
                 |runs, chunk| {
                     let prep = &prepared[&chunk.samples];
                     let run = runs.get_mut(&chunk.samples).expect("a run per chunk length");
-                    let rows = self.scan_chunk(series, chunk, prep, run, &welch, &clock);
+                    let rows = self.scan_chunk(series, chunk, prep, run, (&welch, &failing_sums), &clock);
                     progress((chunk.keep_to - chunk.keep_from) as f64 / fs);
                     rows
                 },
@@ -367,7 +368,7 @@ impl Scanner {
         chunk: &Chunk,
         prep: &Prepared,
         run: &mut gwml_runtime::Run,
-        welch: &Welch,
+        (welch, failing_sums): (&Welch, &FailingSums),
         clock: &StageClock,
     ) -> Result<Vec<Row>, Error> {
         let mut since = std::time::Instant::now();
@@ -437,12 +438,17 @@ impl Scanner {
                     }
                     let stride = ((window / 4.0) / dt).round().max(1.0) as usize;
                     let excess = ExcessPower::new(dt, tau * noise_inflation, n as f64 * dt, o.tile_threshold);
+                    let fails_below = failing_sums.get(&excess);
                     for s in (0..energies.len() - n).step_by(stride) {
+                        let sum = prefix[s + n] - prefix[s];
+                        if sum <= fails_below {
+                            continue;
+                        }
                         let centre = (s as f64 + 0.5 * n as f64) * dt;
                         if !kept(centre) {
                             continue;
                         }
-                        if let Some((snr, significance)) = excess.test(prefix[s + n] - prefix[s]) {
+                        if let Some((snr, significance)) = excess.test(sum) {
                             // The time of the excess energy around the window
                             // (finer than its stride, and centred on a long
                             // glitch whose envelope is flatter than the window).
@@ -502,6 +508,24 @@ fn excess_centroid(energies: &[f64], dt: f64, from: f64, to: f64) -> Option<f64>
         wt += excess * k as f64 * dt;
     }
     (w > 0.0).then(|| wt / w)
+}
+
+/// [`ExcessPower::failing_sum`] of each excess-power test a scan makes,
+/// computed once (the tests repeat from chunk to chunk) and shared by the
+/// threads: most windows of noise are then skipped by one comparison
+/// instead of a tail probability (this halved the excess-power time).
+#[derive(Default)]
+struct FailingSums(std::sync::Mutex<std::collections::HashMap<ExcessPower, f64>>);
+
+impl FailingSums {
+    fn get(&self, test: &ExcessPower) -> f64 {
+        if let Some(sum) = self.0.lock().expect("no panics while locked").get(test) {
+            return *sum;
+        }
+        let sum = test.failing_sum();
+        self.0.lock().expect("no panics while locked").insert(test.clone(), sum);
+        sum
+    }
 }
 
 /// A chunk length's compiled whitening scene and tiling.
