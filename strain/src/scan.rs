@@ -424,12 +424,11 @@ impl Scanner {
                 }
                 // Excess power over windows of several durations.
                 let tau = row.correlation_time();
-                prefix.clear();
-                prefix.push(0.0);
+                prefix.resize(energies.len() + 1, 0.0);
                 let mut acc = 0.0;
-                for z in &energies {
+                for (sum, z) in prefix[1..].iter_mut().zip(&energies) {
                     acc += z * LN_2 - 1.0;
-                    prefix.push(acc);
+                    *sum = acc;
                 }
                 for &window in EXCESS_POWER_WINDOWS.iter().filter(|w| **w >= 4.0 * tau) {
                     let n = (window / dt).round() as usize;
