@@ -21,12 +21,14 @@
 
 mod campaign;
 mod causes;
+mod heterodyne;
 mod rates;
 mod report;
 mod seeds;
 
 pub use campaign::*;
 pub use causes::*;
+pub use heterodyne::*;
 pub use rates::*;
 pub use report::*;
 pub use seeds::*;
@@ -46,6 +48,10 @@ pub const STARTS_REFINED: usize = 2;
 /// A starting point: `dt` and the shape params.
 type Start = (f64, Vec<f64>);
 
+/// Starting points found in the data: from the whitened window and its
+/// sample rate (Hz).
+type DataStarts = fn(&[f64], f64, &Seed) -> Vec<Start>;
+
 /// A free param of a fit scene: name, unit, bounds.
 type FreeParam = (String, String, Option<(f64, f64)>);
 
@@ -59,6 +65,8 @@ pub struct Family {
     /// Starting points for a seed: `dt` and the shape params (the scene's
     /// free params after `dt`, `snr` and `phi`).
     starts: fn(&Seed) -> Vec<Start>,
+    /// More starting points found in the data (whitened window, its rate).
+    data_starts: Option<DataStarts>,
     /// The highest frequency (Hz) its whitened templates carry energy at
     /// within the bounds: the fit runs at the lowest rate whose Nyquist
     /// frequency is above it ([`factor_for`]).
@@ -67,17 +75,17 @@ pub struct Family {
 
 /// Every candidate, in the order of `explain.gw`.
 pub const FAMILIES: [Family; 7] = [
-    Family { scene: "blip", label: "Blip", starts: blip_starts, top: f64::INFINITY },
-    Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts, top: f64::INFINITY },
-    Family { scene: "whistle", label: "Whistle", starts: whistle_starts, top: f64::INFINITY },
-    Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts, top: f64::INFINITY },
+    Family { scene: "blip", label: "Blip", starts: blip_starts, data_starts: None, top: f64::INFINITY },
+    Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts, data_starts: None, top: f64::INFINITY },
+    Family { scene: "whistle", label: "Whistle", starts: whistle_starts, data_starts: Some(whistle_data_starts), top: f64::INFINITY },
+    Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts, data_starts: None, top: f64::INFINITY },
     // f0 ≤ 75 Hz at Q ≥ 1.2: the envelope's spectrum has a 1/e half-width
     // of √2 f0 / Q ≤ 88 Hz, so at 400 Hz it is down by e^-13.
-    Family { scene: "tomte", label: "Tomte", starts: tomte_starts, top: 400.0 },
+    Family { scene: "tomte", label: "Tomte", starts: tomte_starts, data_starts: None, top: 400.0 },
     // The third harmonic of fringes of at most 100 Hz.
-    Family { scene: "scattered_light", label: "Scattered Light", starts: scattered_light_starts, top: 400.0 },
+    Family { scene: "scattered_light", label: "Scattered Light", starts: scattered_light_starts, data_starts: None, top: 400.0 },
     // The inspiral ends at its ISCO: 191 Hz for the lightest binary of the bounds.
-    Family { scene: "chirp", label: "Chirp", starts: chirp_starts, top: 400.0 },
+    Family { scene: "chirp", label: "Chirp", starts: chirp_starts, data_starts: None, top: 400.0 },
 ];
 
 /// Every combination of one value per axis, each at time offset `dt`.
@@ -155,6 +163,16 @@ fn whistle_starts(s: &Seed) -> Vec<Start> {
         }
     }
     starts
+}
+
+/// How many of the heterodyne search's whistle shapes become starts.
+const WHISTLE_DATA_STARTS: usize = 12;
+
+// The best whistle shapes of a dense grid of spans and widths, each with
+// the vertex frequency that best matches the data (`heterodyne.rs`): the
+// grid above is too coarse to land in a long sweep's narrow lobe.
+fn whistle_data_starts(d: &[f64], fs: f64, s: &Seed) -> Vec<Start> {
+    whistle_starts_from_data(d, fs, s, WHISTLE_DATA_STARTS)
 }
 
 // Around the envelope's arches if there are any, and a coarse grid (the
@@ -254,6 +272,7 @@ pub struct Explainer {
     /// Each family's scene and the divisor of the rate it runs at.
     scenes: Vec<(Family, Scene, usize)>,
     samples: usize,
+    sample_rate: f64,
 }
 
 /// One fitted param.
@@ -362,7 +381,7 @@ impl Explainer {
             Ok((*family, model.scene_with(Some(family.scene), options)?, factor))
         };
         let scenes = FAMILIES.iter().map(compile).collect::<Result<_, Error>>()?;
-        Ok(Explainer { scenes, samples })
+        Ok(Explainer { scenes, samples, sample_rate: o.sample_rate })
     }
 
     /// Samples of the window the scenes take.
@@ -389,7 +408,7 @@ impl Explainer {
         let mut fits = self
             .scenes
             .iter()
-            .map(|(family, scene, factor)| fit_family(family, scene, at(*factor), seed))
+            .map(|(family, scene, factor)| fit_family(family, scene, (at(*factor), self.sample_rate / *factor as f64), seed))
             .collect::<Result<Vec<_>, _>>()?;
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
         let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();
@@ -419,7 +438,7 @@ fn set(run: &mut Run, names: &[FreeParam], x: &[f64]) -> Result<(), Error> {
 
 /// Fits one family to the window at its rate: starts, L-BFGS, Fisher
 /// matrix and evidence, with the loss and model of the full-rate window.
-fn fit_family(family: &Family, scene: &Scene, window: &Decimated, seed: &Seed) -> Result<FamilyFit, Error> {
+fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decimated, f64), seed: &Seed) -> Result<FamilyFit, Error> {
     let (d, psd) = (&window.d, &window.psd);
     let mut run = scene.bind();
     run.input_real("d", d)?;
@@ -440,7 +459,11 @@ fn fit_family(family: &Family, scene: &Scene, window: &Decimated, seed: &Seed) -
     // 1. Starting points, each with the amplitude and phase that best match the data.
     let mut ranked = Vec::new();
     {
-        for (dt, shape) in (family.starts)(seed) {
+        let mut starts = (family.starts)(seed);
+        if let Some(from_data) = family.data_starts {
+            starts.extend(from_data(d, rate, seed));
+        }
+        for (dt, shape) in starts {
             let mut x = vec![dt, 1.0, 0.0];
             x.extend(shape);
             let mut x: Vec<f64> = x.iter().enumerate().map(|(i, v)| inside(i, *v)).collect();
