@@ -35,7 +35,7 @@ const EXCESS_POWER_WINDOWS: [f64; 4] = [0.125, 0.25, 0.5, 1.0];
 /// their energy (Scratchy's arches, a Whistle's sweep). Q 22.6 is included
 /// for the slow part of a Whistle's sweep: it found 1.0-1.5 % more of the
 /// injections of `gwml data strain` files (seeds 42-44; most of them
-/// Whistles at SNR 9-12) for 0.02-0.05 more noise triggers per 100 s
+/// Whistles at SNR 9-12) for 0.02-0.07 more noise triggers per 100 s
 /// (README, "Scanning real strain").
 const EXCESS_POWER_MAX_Q: f64 = 23.0;
 
