@@ -101,46 +101,58 @@ fn plot_explanation(path: &Path, title: &str, w: &Whitened, win: &Window, e: &Ex
 }
 
 /// `gwml experiment explain`: the injection campaign of
-/// `lab::explain::run_campaign` (every family, `per_class` each, at SNR
-/// `snr` or each class's own from 10 up), written to `out` as
-/// `outcomes.csv` and `summary.md`.
-pub fn campaign(out: &Path, per_class: usize, seed: u64, snr: Option<(f64, f64)>) -> Result<(), String> {
+/// `lab::explain::run_campaign` (the `classes`, or every family when
+/// empty, `per_class` each, at SNR `snr` or each class's own from 10 up),
+/// written to `out` as `outcomes.csv` and `summary.md`.
+pub fn campaign(out: &Path, per_class: usize, seed: u64, snr: Option<(f64, f64)>, classes: Vec<usize>) -> Result<(), String> {
     use gwml_lab::explain::{run_campaign, summarise, CampaignOptions, MIN_SNR};
+    use gwml_lab::synth::GLITCH_CLASSES;
     use std::fmt::Write;
     std::fs::create_dir_all(out).map_err(|e| format!("error: cannot create {}: {e}", out.display()))?;
-    let o = CampaignOptions { per_class, classes: (1..=7).collect(), snr, window: 2.0, seed };
+    let classes = if classes.is_empty() { (1..GLITCH_CLASSES.len()).collect() } else { classes };
+    let o = CampaignOptions { per_class, classes, snr, window: 2.0, seed };
     let bar = indicatif::ProgressBar::new((per_class * o.classes.len()) as u64);
     bar.set_style(indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} injections explained, ETA {eta}").expect("template"));
     let outcomes = run_campaign(&o, |_| bar.inc(1)).map_err(|e| format!("error: {}", e.render(false)))?;
     bar.finish_and_clear();
-    let mut csv = String::from("class,snr,verdict,ln_b_vs_second,seconds,evaluations,params\n");
+    let mut csv =
+        String::from("class,snr,verdict,ln_b_vs_second,injected_fit_snr,injected_ln_b_vs_noise,seconds,evaluations,params,injected\n");
     for o in &outcomes {
         let e = &o.explanation;
         let second = e.fits.get(1).map_or(f64::NAN, |s| e.fits[0].ln_z() - s.ln_z());
+        let injected = e.fits.iter().find(|f| f.family.label == GLITCH_CLASSES[o.injection.class]);
+        let fit_snr = injected.map_or(f64::NAN, |f| (2.0 * (e.noise_loss - f.score.loss)).max(0.0).sqrt());
+        let injected_ln_b = injected.map_or(f64::NAN, |f| e.ln_bayes_vs_noise(f));
         let params: Vec<String> = o
             .recovered()
             .iter()
             .map(|(n, v, s, t)| format!("{n}={v:.5}±{}/truth {t:.5}", s.map_or("-".into(), |s| format!("{s:.5}"))))
             .collect();
-        let class = gwml_lab::synth::GLITCH_CLASSES[o.injection.class];
+        let class = GLITCH_CLASSES[o.injection.class];
         let _ = writeln!(
             csv,
-            "{class},{:.3},{},{second:.3},{:.3},{},{}",
+            "{class},{:.3},{},{second:.3},{fit_snr:.3},{injected_ln_b:.3},{:.3},{},{},{}",
             o.injection.snr,
             o.verdict(),
             o.seconds,
             e.evaluations(),
-            params.join(" ")
+            params.join(" "),
+            o.injection.params.iter().map(|(n, v)| format!("{n}={v:.5}")).collect::<Vec<_>>().join(" ")
         );
     }
     let mut seconds: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
     seconds.sort_by(f64::total_cmp);
     let mut md = format!(
-        "# gwml explain: injection campaign\n\n`gwml experiment explain --seed {seed}{}{}`: {per_class} injections per class into simulated aLIGO strain \
+        "# gwml explain: injection campaign\n\n`gwml experiment explain --seed {seed}{}{}{}`: {per_class} injections per class into simulated aLIGO strain \
          {}, each explained in a 2 s window. Time per trigger (one thread): median {:.2} s, 90th percentile {:.2} s.\n\n\
          | class | injections | right family | param: within 3σ (of those with σ), median relative error |\n|---|---|---|---|\n",
         if per_class == 100 { String::new() } else { format!(" --per-class {per_class}") },
         snr.map_or(String::new(), |(lo, hi)| format!(" --snr {lo}..{hi}")),
+        if o.classes.len() == GLITCH_CLASSES.len() - 1 {
+            String::new()
+        } else {
+            o.classes.iter().map(|c| format!(" --class '{}'", GLITCH_CLASSES[*c])).collect()
+        },
         snr.map_or(format!("at each class's own SNR range after Gravity Spy, from {MIN_SNR} up"), |(lo, hi)| format!("at SNR {lo}–{hi}")),
         seconds[seconds.len() / 2],
         seconds[seconds.len() * 9 / 10],

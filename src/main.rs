@@ -457,6 +457,11 @@ pub struct ExperimentArgs {
     /// `glitch`: worker threads [default: all cores]; `explain` runs on one.
     #[arg(long)]
     pub threads: Option<usize>,
+    /// `explain`: only this class (e.g. Whistle, koi_fish); repeat for
+    /// several [default: every glitch class and Chirp]. A class's
+    /// injections do not depend on which others run.
+    #[arg(long = "class", value_name = "NAME")]
+    pub classes: Vec<String>,
 }
 
 /// The experiments `gwml experiment` runs.
@@ -568,7 +573,11 @@ fn main() -> ExitCode {
             }),
             ExperimentKind::Explain => {
                 let snr = a.snr.as_deref().map(gwml_lab::parse_range).transpose();
-                snr.and_then(|snr| explain::campaign(&a.out.unwrap_or_else(|| "results/explain".into()), a.per_class, a.seed, snr))
+                let classes = a.classes.iter().map(|c| gwml_lab::synth::glitch_class(c)).collect::<Result<Vec<usize>, String>>();
+                snr.and_then(|snr| {
+                    let out = a.out.unwrap_or_else(|| "results/explain".into());
+                    explain::campaign(&out, a.per_class, a.seed, snr, classes?)
+                })
             }
         },
         Command::Repl => {

@@ -24,24 +24,27 @@ fn each_family_is_told_apart_and_its_params_recovered() {
     let overlap = |o: &Outcome| o.verdict() == "Tomte" && GLITCH_CLASSES[o.injection.class] == "Blip" && f0(o) < 80.0;
     let right = outcomes.iter().filter(|o| o.right() || overlap(o)).count();
     let verdicts: Vec<(&str, &str, f64)> = outcomes.iter().map(|o| (GLITCH_CLASSES[o.injection.class], o.verdict(), f0(o))).collect();
-    // The campaign (README) wins Blip 84-93 %, Whistle 80-83 %, Scratchy
-    // 65-75 %, Chirp 89-98 %, Tomte 95-96 %: ~17 of these 20 on average,
-    // with a binomial spread of ±1.6.
+    // The campaign (README) wins Blip 84-93 %, Whistle 80-88 %, Scratchy
+    // 100 %, Chirp 89-98 %, Tomte 95-96 %: ~18 of these 20 on average,
+    // with a binomial spread of ±1.4.
     assert!(right >= 16, "{right} of 20 explained by the injected family: {verdicts:?}");
     for (label, n, right, params) in summarise(&outcomes) {
         let overlapping = outcomes.iter().filter(|o| GLITCH_CLASSES[o.injection.class] == label && overlap(o)).count();
-        // Whistles and scratchy glitches are won ~80 % of the time at
-        // SNR 10-30 (the campaign, README): a long shape's search can miss.
-        let misses = if label == "Whistle" || label == "Scratchy" { 2 } else { 1 };
+        // Whistles are won ~85 % of the time at SNR 10-30 (the campaign,
+        // README): a long sweep's search can miss.
+        let misses = if label == "Whistle" { 2 } else { 1 };
         assert!(right + overlapping + misses >= n, "{label}: {right} of {n} right: {verdicts:?}");
         for (name, with_sigma, within, median) in params {
             // The targets: f0 within 10 % and Q within 30 % in the
-            // median, and within 3σ. (A scratchy glitch's carrier wobbles by
-            // up to 25 % in the benchmark, and the fit's f0 is its centre to
-            // ~11 % in the campaign's median: not asserted here.)
+            // median, and within 3σ. A scratchy glitch's carrier and arch
+            // rate come from the comb of lines it makes (heterodyne.rs):
+            // within 0.1-0.2 % in the campaign's median; 7 % before.
             if label == "Blip" && name == "f0" {
                 assert!(median < 0.1, "{label} {name}: median relative error {median}");
                 assert!(within + 1 >= with_sigma, "{label} {name}: {within} of {with_sigma} within 3σ");
+            }
+            if label == "Scratchy" && (name == "f0" || name == "rate") {
+                assert!(median < 0.02, "{label} {name}: median relative error {median}");
             }
             if label == "Blip" && name == "q" {
                 assert!(median < 0.3, "blip q: median relative error {median}");

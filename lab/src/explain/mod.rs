@@ -78,7 +78,7 @@ pub const FAMILIES: [Family; 7] = [
     Family { scene: "blip", label: "Blip", starts: blip_starts, data_starts: None, top: f64::INFINITY },
     Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts, data_starts: None, top: f64::INFINITY },
     Family { scene: "whistle", label: "Whistle", starts: whistle_starts, data_starts: Some(whistle_data_starts), top: f64::INFINITY },
-    Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts, data_starts: None, top: f64::INFINITY },
+    Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts, data_starts: Some(scratchy_data_starts), top: f64::INFINITY },
     // f0 ≤ 75 Hz at Q ≥ 1.2: the envelope's spectrum has a 1/e half-width
     // of √2 f0 / Q ≤ 88 Hz, so at 400 Hz it is down by e^-13.
     Family { scene: "tomte", label: "Tomte", starts: tomte_starts, data_starts: None, top: 400.0 },
@@ -176,17 +176,27 @@ fn whistle_data_starts(d: &[f64], fs: f64, s: &Seed) -> Vec<Start> {
 }
 
 // Around the envelope's arches if there are any, and a coarse grid (the
-// arch rate needs a fine one: a template 2 Hz off loses the match).
+// arch rate needs a fine one: a template 2 Hz off loses the match), all
+// without a swing of the carrier; the heterodyne search below finds it.
 fn scratchy_starts(s: &Seed) -> Vec<Start> {
     let mut starts =
-        grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[8.0, 11.0, 14.0, 17.0, 20.0, 24.0, 28.0, 33.0], &[0.5, 1.0, 1.6]]);
+        grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[8.0, 11.0, 14.0, 17.0, 20.0, 24.0, 28.0, 33.0], &[0.5, 1.0, 1.6], &[0.0]]);
     if let Some(a) = s.arches {
         starts.extend(grid(
             a.dt,
-            &[&scaled(a.f0, [0.995, 1.0, 1.005]), &scaled(a.rate, [0.95, 1.0, 1.05]), &scaled(a.duration, [0.5, 0.7, 1.0, 1.4])],
+            &[&scaled(a.f0, [0.995, 1.0, 1.005]), &scaled(a.rate, [0.95, 1.0, 1.05]), &scaled(a.duration, [0.5, 0.7, 1.0, 1.4]), &[0.0]],
         ));
     }
     starts
+}
+
+/// How many of the heterodyne search's scratchy shapes become starts.
+const SCRATCHY_DATA_STARTS: usize = 12;
+
+// Carrier, rate, swing and arch phase from the comb of lines a train of
+// arches makes in the data's spectrum (`heterodyne.rs`).
+fn scratchy_data_starts(d: &[f64], fs: f64, s: &Seed) -> Vec<Start> {
+    scratchy_starts_from_data(d, fs, s, SCRATCHY_DATA_STARTS)
 }
 
 // The loudest tile sits just before the merger. A chirp stays in phase

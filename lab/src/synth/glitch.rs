@@ -47,6 +47,16 @@ impl GlitchClass {
 /// Class labels of [`glitches`], in label order.
 pub const GLITCH_CLASSES: &[&str] = &["None", "Blip", "Koi Fish", "Whistle", "Scratchy", "Chirp", "Tomte", "Scattered Light"];
 
+/// The index in [`GLITCH_CLASSES`] of a class named as there, in any case,
+/// with `_` for spaces (`koi_fish`), or why there is none.
+pub fn glitch_class(name: &str) -> Result<usize, String> {
+    let key = |s: &str| s.to_ascii_lowercase().replace('_', " ");
+    GLITCH_CLASSES
+        .iter()
+        .position(|c| key(c) == key(name.trim()))
+        .ok_or_else(|| format!("error: no glitch class `{name}`; the classes are {}", GLITCH_CLASSES.join(", ")))
+}
+
 /// The scene that draws one whitened signal of any class (`class` selects).
 pub(crate) const GLITCH_SCENE: &str = include_str!("../../models/glitch/synth.gw");
 
@@ -317,6 +327,15 @@ fn centred_at(s: &[f64], at: f64) -> Vec<f64> {
 mod tests {
     use super::*;
     use crate::synth::population::{snr_range, KOI_FISH};
+
+    #[test]
+    fn glitch_classes_are_named_in_any_case_with_underscores_for_spaces() {
+        assert_eq!(glitch_class("Koi Fish"), Ok(2));
+        assert_eq!(glitch_class("koi_fish"), Ok(2));
+        assert_eq!(glitch_class(" SCATTERED_light "), Ok(7));
+        let e = glitch_class("Koi").unwrap_err();
+        assert!(e.contains("no glitch class `Koi`") && e.contains("Scattered Light"), "{e}");
+    }
 
     #[test]
     fn generated_shapes_replace_the_formula_at_the_drawn_snr_and_centre() {

@@ -20,7 +20,8 @@ pub mod real_fits;
 
 pub(crate) use glitch::GLITCH_SCENE;
 pub use glitch::{
-    glitches, glitches_with, signal_centre, unit_signal, GlitchClass, GlitchOptions, GlitchSignals, ShapeSource, CENTRED, GLITCH_CLASSES,
+    glitch_class, glitches, glitches_with, signal_centre, unit_signal, GlitchClass, GlitchOptions, GlitchSignals, ShapeSource, CENTRED,
+    GLITCH_CLASSES,
 };
 pub use population::{draw_shape, draw_snr, snr_range, NoiseExtras};
 
