@@ -9,10 +9,12 @@
 //! one-sided PSD `S`. Glitches: the signals of `lab/models/glitch/synth.gw`
 //! (scene `glitch_strain`) with shape params drawn as for `gwml data glitch`
 //! ([`crate::synth::draw_shape`]), centred on their injection time (the
-//! chirp's merger at it), cut to their 1 s window by a Tukey taper of
-//! [`TAPER`] s at each end (a Scratchy or Scattered Light glitch longer
-//! than the window would otherwise end in a step, a broadband transient of
-//! its own), scaled to an optimal SNR drawn uniformly from the
+//! chirp's merger at it, [`CHIRP_TAIL`] s before the window's end), drawn
+//! over an [`INJECTION_WINDOW`] of 4 s — Scratchy glitches last up to 2.5 s
+//! and Scattered Light up to 4 s, as real ones do — and cut to it by a
+//! Tukey taper of [`TAPER`] s at each end (so that a glitch longer than the
+//! window does not end in a step, a broadband transient of its own),
+//! scaled to an optimal SNR drawn uniformly from the
 //! range: `ρ² = 4 df Σ |h̃(f)|² / S(f)` over 20 Hz–2 kHz, the band of the
 //! glitch datasets. Injection times: a Poisson process of the given rate,
 //! at least 2 s apart and 10 s from the ends, never in a gap.
@@ -28,12 +30,20 @@ use realfft::RealFftPlanner;
 
 /// Sample rate of simulated strain (that of the glitch signal scene).
 pub const SAMPLE_RATE: f64 = 4096.0;
-/// The band (Hz, which are the bins of an injected 1 s window) an
-/// injection's SNR, energy span and colouring are computed over: that of
-/// the glitch datasets.
-const SIGNAL_BAND: std::ops::RangeInclusive<usize> = 20..=2000;
+/// The band (Hz) an injection's SNR, energy span and colouring are
+/// computed over: that of the glitch datasets.
+const SIGNAL_BAND: (f64, f64) = (20.0, 2000.0);
 
-/// Length (s) of the cosine taper at each end of an injected 1 s window.
+/// Seconds of strain each injected signal is drawn over, centred on it.
+/// (Until 2026-11-26 it was 1 s, which cut long glitches short: a 2.5 s
+/// Scratchy was injected as a 1 s one.)
+pub const INJECTION_WINDOW: f64 = 4.0;
+
+/// Seconds from a chirp's merger to the end of its window, as the glitch
+/// benchmark's 1 s rows place it (`tc` 0.8-0.95 s).
+pub const CHIRP_TAIL: f64 = 0.1;
+
+/// Length (s) of the cosine taper at each end of an injection's window.
 pub const TAPER: f64 = 0.1;
 
 /// The Tukey window that cuts an injected signal to `n` samples at `fs`:
@@ -144,7 +154,7 @@ pub fn simulate(o: &StrainOptions) -> Result<(Series, Vec<Injection>), Error> {
 /// [`simulate`], with the shapes of some classes from `shape` (clean
 /// whitened rows of 4096 samples at 4096 Hz, from a fitted generator):
 /// each is coloured by the PSD, so that whitening gives it back, centred in
-/// its 1 s window and scaled to the drawn SNR.
+/// its window and scaled to the drawn SNR.
 pub fn simulate_with(o: &StrainOptions, shape: &mut ShapeSource<'_>) -> Result<(Series, Vec<Injection>), Error> {
     if !(o.duration >= 32.0 && o.duration.fract() == 0.0 && o.duration <= 1e6) {
         return Err(Error::Bind(format!("--duration {} must be a whole number of seconds from 32 to 1e6", o.duration)));
@@ -232,14 +242,22 @@ fn inject<R: Rng>(
         return Ok(Vec::new());
     }
     let model = Model::from_source("synth.gw", crate::synth::GLITCH_SCENE)?;
-    let scene = model.scene(Some("glitch_strain"))?;
+    let knobs = vec![("window".to_string(), format!("{INJECTION_WINDOW:?} s"))];
+    let scene = model.scene_with(Some("glitch_strain"), gwml_compiler::Options { knobs, ..gwml_compiler::Options::default() })?;
     let mut run = scene.bind();
     let fs = series.sample_rate;
-    let window = fs as usize;
-    let psd_1hz: Vec<f64> = (0..=window / 2).map(|k| curve.psd_at(k as f64)).collect();
+    let window = (INJECTION_WINDOW * fs) as usize;
+    let df = fs / window as f64;
+    let psd: Vec<f64> = (0..=window / 2).map(|k| curve.psd_at(k as f64 * df)).collect();
+    let band = |k: usize| (SIGNAL_BAND.0..=SIGNAL_BAND.1).contains(&(k as f64 * df));
     let mut planner = RealFftPlanner::<f64>::new();
     let (fft, ifft) = (planner.plan_fft_forward(window), planner.plan_fft_inverse(window));
     let taper = injection_taper(window, fs);
+    // A generator's rows are 1 s long: coloured and tapered over their own second.
+    let row = fs as usize;
+    let psd_row: Vec<f64> = (0..=row / 2).map(|k| curve.psd_at(k as f64)).collect();
+    let row_plans = (planner.plan_fft_forward(row), planner.plan_fft_inverse(row));
+    let row_taper = injection_taper(row, fs);
     let mean_gap = 60.0 / o.glitch_rate;
     let mut injections = Vec::new();
     let mut t = 10.0;
@@ -254,19 +272,27 @@ fn inject<R: Rng>(
         let generated = shape(class)?;
         let mut params = if generated.is_some() { Vec::new() } else { draw_shape(rng, class).to_vec() };
         let snr = draw_snr(rng, class, o.snr);
-        // Glitches centred in their 1 s window; a chirp merges at `tc`.
+        // Glitches centred in their window; a chirp merges CHIRP_TAIL before its end.
         let centre = if class == 5 && generated.is_none() {
-            params.iter().find(|p| p.0 == "tc").map_or(0.9, |p| p.1)
+            let tc = INJECTION_WINDOW - CHIRP_TAIL;
+            params.iter_mut().filter(|p| p.0 == "tc").for_each(|p| p.1 = tc);
+            tc
         } else {
-            params.iter_mut().filter(|p| p.0 == "t0").for_each(|p| p.1 = 0.5);
-            0.5
+            params.iter_mut().filter(|p| p.0 == "t0").for_each(|p| p.1 = 0.5 * INJECTION_WINDOW);
+            0.5 * INJECTION_WINDOW
         };
         let window_start = ((t - centre) * fs).round() as usize;
-        if o.gaps.iter().any(|&(s, l)| t + 1.0 > s && t - 1.0 < s + l) {
+        if o.gaps.iter().any(|&(s, l)| t + centre > s && t - centre < s + l) {
             continue;
         }
         let h = match &generated {
-            Some(w) => coloured(w, &psd_1hz, fs, (&fft, &ifft))?,
+            Some(w) => {
+                let h = coloured(w, &psd_row, fs, (&row_plans.0, &row_plans.1))?;
+                let mut padded = vec![0.0; window];
+                let at = (window - row) / 2;
+                padded[at..at + row].iter_mut().zip(h.iter().zip(&row_taper)).for_each(|(x, (v, w))| *x = v * w);
+                padded
+            }
             None => {
                 run.param("class", class as f64)?;
                 for (name, value) in &params {
@@ -283,7 +309,7 @@ fn inject<R: Rng>(
         let mut spectrum = fft.make_output_vec();
         fft.process(&mut input, &mut spectrum).map_err(|e| Error::Bind(format!("FFT failed: {e}")))?;
         let dt = 1.0 / fs;
-        let rho2: f64 = SIGNAL_BAND.map(|k| 4.0 * (spectrum[k] * dt).norm_sqr() / psd_1hz[k]).sum();
+        let rho2: f64 = (0..spectrum.len()).filter(|k| band(*k)).map(|k| 4.0 * df * (spectrum[k] * dt).norm_sqr() / psd[k]).sum();
         if !(rho2 > 0.0 && rho2.is_finite()) {
             return Err(Error::Bind(format!("a {} signal has no power in 20-2000 Hz", GLITCH_CLASSES[class])));
         }
@@ -293,7 +319,7 @@ fn inject<R: Rng>(
         }
         // The whitened signal (20 Hz-2 kHz), for the span of its energy.
         for (k, x) in spectrum.iter_mut().enumerate() {
-            *x = if SIGNAL_BAND.contains(&k) { *x / psd_1hz[k].sqrt() } else { 0.0.into() };
+            *x = if band(k) { *x / psd[k].sqrt() } else { 0.0.into() };
         }
         let mut whitened = ifft.make_output_vec();
         ifft.process(&mut spectrum, &mut whitened).map_err(|e| Error::Bind(format!("inverse FFT failed: {e}")))?;
@@ -327,7 +353,8 @@ fn coloured(
     let mut spectrum = fft.make_output_vec();
     fft.process(&mut input, &mut spectrum).map_err(|e| Error::Bind(format!("FFT failed: {e}")))?;
     for (k, x) in spectrum.iter_mut().enumerate() {
-        *x *= if SIGNAL_BAND.contains(&k) { (psd_1hz[k] * fs / 2.0).sqrt() / 1e-21 / w.len() as f64 } else { 0.0 };
+        let in_band = (SIGNAL_BAND.0..=SIGNAL_BAND.1).contains(&(k as f64));
+        *x *= if in_band { (psd_1hz[k] * fs / 2.0).sqrt() / 1e-21 / w.len() as f64 } else { 0.0 };
     }
     let mut h = ifft.make_output_vec();
     ifft.process(&mut spectrum, &mut h).map_err(|e| Error::Bind(format!("inverse FFT failed: {e}")))?;
@@ -406,5 +433,33 @@ mod tests {
         let mut spike = vec![0.0; 64];
         spike[10] = 3.0;
         assert_eq!(energy_span(&spike, 0.9), (10, 11));
+    }
+
+    #[test]
+    fn long_glitches_are_injected_at_their_full_length() {
+        // Scratchy glitches of 0.8-2.5 s: under a Gaussian envelope of 1/e
+        // half-width duration / 2 the energy has σ = duration / 4, so its
+        // central 90 % spans ±1.645 σ, 0.82 duration: up to 2 s, more than
+        // the 1 s window they were once drawn over could hold.
+        let o = StrainOptions {
+            duration: 200.0,
+            gps_start: 0.0,
+            ifo: "H1".into(),
+            psd: NoiseCurve::Aligo,
+            glitch_rate: 12.0,
+            classes: vec![4],
+            snr: Some((20.0, 20.0)),
+            gaps: Vec::new(),
+            seed: 9,
+        };
+        let (_, injections) = simulate(&o).unwrap();
+        assert!(injections.len() >= 20, "{} injections", injections.len());
+        for i in &injections {
+            let duration = i.params.iter().find(|p| p.0 == "duration").unwrap().1;
+            let span = i.span.1 - i.span.0;
+            assert!((span - 0.82 * duration).abs() < 0.12 * duration, "a {duration:.2} s scratchy's energy spans {span:.2} s");
+            assert!((i.snr - 20.0).abs() < 1e-9);
+        }
+        assert!(injections.iter().any(|i| i.span.1 - i.span.0 > 1.5), "no energy span over 1.5 s");
     }
 }
