@@ -40,7 +40,10 @@ const SPAN_STEP: f64 = 50.0;
 const HALVES: [f64; 7] = [0.06, 0.08, 0.11, 0.15, 0.2, 0.27, 0.35];
 
 /// How far (as a fraction of the seed's frequency) the vertex may lie from
-/// it: the loudest tile sits near the vertex, where the sweep is slowest.
+/// it beyond the span: the loudest tile sits near the vertex, where the
+/// sweep is slowest, or on an arm — below the vertex of an inverted V, the
+/// whitened arms being louder at lower frequencies — so the vertex is
+/// looked for from the tile's frequency to a span past it.
 const REACH: f64 = 0.08;
 
 /// Searches whistle shapes over a window of `n` samples at `fs` Hz.
@@ -64,18 +67,20 @@ impl WhistleSearch {
     /// `reach` Hz of `f` that best matches the whitened data `d`, and that
     /// match as an SNR in unit-variance white noise (`|z| / √(Σ|a|²/2)`).
     pub fn tune(&mut self, d: &[f64], (dt, f, span, half): (f64, f64, f64, f64), reach: f64) -> (f64, f64) {
-        self.scan_spans(d, (dt, f, half), (span, 0.0, 1), reach)[0]
+        self.scan_spans(d, (dt, f, half), (span, 0.0, 1), |_| (reach, reach))[0]
     }
 
     /// [`WhistleSearch::tune`] for `count` spans `first, first + step, …`
-    /// at one vertex time and half-width: one FFT per span, the product's
-    /// chirp advanced by a per-sample rotation from one span to the next.
+    /// at one vertex time and half-width, the vertex looked for from
+    /// `reach(span).0` Hz below `f` to `reach(span).1` above: one FFT per
+    /// span, the product's chirp advanced by a per-sample rotation from one
+    /// span to the next.
     pub fn scan_spans(
         &mut self,
         d: &[f64],
         (dt, f, half): (f64, f64, f64),
         (first, step, count): (f64, f64, usize),
-        reach: f64,
+        reach: impl Fn(f64) -> (f64, f64),
     ) -> Vec<(f64, f64)> {
         let n = d.len();
         let centre = 0.5 * n as f64 / self.fs + dt;
@@ -99,7 +104,7 @@ impl WhistleSearch {
             rotation.push(Complex64::from_polar(1.0, chirp * step));
         }
         let df = self.fs / n as f64;
-        let bins = (reach / df).ceil() as i64;
+        let half_n = (n / 2) as i64 - 1;
         let snr_per_peak = if norm > 0.0 { 1.0 / (0.5 * norm).sqrt() } else { 0.0 };
         let mut out = Vec::with_capacity(count);
         for i in 0..count {
@@ -111,7 +116,9 @@ impl WhistleSearch {
             self.fft.process_with_scratch(&mut self.buf, &mut self.scratch);
             // Bin m holds the shift δ = m fs / n (negative shifts wrap around).
             let at = |m: i64| self.buf[m.rem_euclid(n as i64) as usize].norm();
-            let (best, peak) = (-bins..=bins).map(|m| (m, at(m))).fold((0, -1.0), |b, c| if c.1 > b.1 { c } else { b });
+            let (below, above) = reach(first + i as f64 * step);
+            let bins = ((-below / df).floor() as i64).max(-half_n)..=((above / df).ceil() as i64).min(half_n);
+            let (best, peak) = bins.map(|m| (m, at(m))).fold((0, -1.0), |b, c| if c.1 > b.1 { c } else { b });
             // A parabola through the peak and its neighbours places it between bins.
             let (l, r) = (at(best - 1), at(best + 1));
             let curvature = l - 2.0 * peak + r;
@@ -124,20 +131,26 @@ impl WhistleSearch {
 
 /// Whistle starts from the data: at the vertex time the seed found (else
 /// the loudest tile's) and the loudest tile's, every span and half-width
-/// of a dense grid with its vertex frequency tuned within ±8 % of the
-/// tile's frequency; the `keep` best matches as `(dt, [f_turn, span, half])`.
+/// of a dense grid with its vertex frequency tuned from 8 % beyond the
+/// tile's frequency to a span past it (on the side the span puts the
+/// vertex); the same from [`Seed::upper`] when there is one. The `keep`
+/// best matches as `(dt, [f_turn, span, half])`.
 pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -> Vec<Start> {
     let mut search = WhistleSearch::new(d.len(), fs);
-    let reach = REACH * seed.frequency;
+    // From the loudest tile, and from the loudest pixel a whistle could be when the tile is lower.
+    let origins = [(seed.vertex, seed.dt, seed.frequency)].into_iter().chain(seed.upper.map(|u| (u.vertex, u.dt, u.frequency)));
     let mut found: Vec<(f64, Start)> = Vec::new();
-    for dt in seed.vertex.into_iter().chain([seed.dt]) {
-        for half in HALVES {
-            let first = *SPANS.start() as f64 * SPAN_STEP;
-            let count = SPANS.count();
-            for (i, (f_turn, snr)) in
-                search.scan_spans(d, (dt, seed.frequency, half), (first, SPAN_STEP, count), reach).into_iter().enumerate()
-            {
-                found.push((snr, (dt, vec![f_turn, first + i as f64 * SPAN_STEP, half])));
+    for (vertex, tile_dt, f) in origins {
+        let margin = REACH * f;
+        // A V's vertex lies at or below the tile, an inverted V's at or above it.
+        let reach = |span: f64| (margin + span.max(0.0), margin + (-span).max(0.0));
+        for dt in vertex.into_iter().chain([tile_dt]) {
+            for half in HALVES {
+                let first = *SPANS.start() as f64 * SPAN_STEP;
+                let count = SPANS.count();
+                for (i, (f_turn, snr)) in search.scan_spans(d, (dt, f, half), (first, SPAN_STEP, count), reach).into_iter().enumerate() {
+                    found.push((snr, (dt, vec![f_turn, first + i as f64 * SPAN_STEP, half])));
+                }
             }
         }
     }
@@ -313,6 +326,18 @@ mod tests {
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
 
+    /// `h` scaled to SNR `snr` in unit white noise drawn from `seed`.
+    fn at_snr_in_white_noise(h: &[f64], snr: f64, seed: u64) -> Vec<f64> {
+        let scale = snr / h.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        h.iter()
+            .map(|v| {
+                let noise: f64 = StandardNormal.sample(&mut rng);
+                v * scale + noise
+            })
+            .collect()
+    }
+
     /// A unit-amplitude whistle (std::glitch's formula) at `t0` s.
     fn whistle(n: usize, fs: f64, t0: f64, f: f64, span: f64, half: f64) -> Vec<f64> {
         (0..n)
@@ -330,15 +355,7 @@ mod tests {
         // truth, three lobe-widths away, and must land within 0.5 Hz.
         let (n, fs) = (8192, 4096.0);
         let h = whistle(n, fs, 1.0 + 0.01, 589.1, 463.0, 0.16);
-        let scale = 12.0 / h.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
-        let d: Vec<f64> = h
-            .iter()
-            .map(|v| {
-                let noise: f64 = StandardNormal.sample(&mut rng);
-                v * scale + noise
-            })
-            .collect();
+        let d = at_snr_in_white_noise(&h, 12.0, 3);
         let mut search = WhistleSearch::new(n, fs);
         let (f, snr) = search.tune(&d, (0.01, 574.0, 463.0, 0.16), 40.0);
         assert!((f - 589.1).abs() < 0.5, "vertex {f} Hz");
@@ -347,7 +364,7 @@ mod tests {
         let (_, off) = search.tune(&d, (0.01, 574.0, 263.0, 0.16), 40.0);
         assert!(off < 0.6 * snr, "match {off} at the wrong span");
         // Spans scanned by rotation match spans tuned one by one.
-        let scanned = search.scan_spans(&d, (0.01, 574.0, 0.16), (263.0, 50.0, 5), 40.0);
+        let scanned = search.scan_spans(&d, (0.01, 574.0, 0.16), (263.0, 50.0, 5), |_| (40.0, 40.0));
         for (i, (f_i, snr_i)) in scanned.iter().enumerate() {
             let (f_1, snr_1) = search.tune(&d, (0.01, 574.0, 263.0 + 50.0 * i as f64, 0.16), 40.0);
             assert!((f_i - f_1).abs() < 1e-6 && (snr_i - snr_1).abs() < 1e-9 * snr_1, "span {i}: {f_i} {snr_i} against {f_1} {snr_1}");
@@ -384,22 +401,15 @@ mod tests {
     }
 
     #[test]
-    fn a_wobbling_scratchy_glitch_is_found_from_a_tile_15_percent_off() {
+    fn a_wobbling_scratchy_glitch_is_found_whatever_the_tile_says() {
         // SNR 12 in unit white noise, a phase swing of β = 0.12·187.3/17.6 =
-        // 1.3 rad; the tile's frequency is 28 Hz below the carrier.
+        // 1.3 rad; the tile's frequency is 28 Hz below the carrier, and the
+        // carrier is searched over the scene's whole range.
         let (n, fs) = (8192, 4096.0);
         let truth = (187.3, 17.6, 1.4, 0.12);
         let h = scratchy(n, fs, 1.0 + 0.07, truth);
-        let scale = 12.0 / h.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
-        let d: Vec<f64> = h
-            .iter()
-            .map(|v| {
-                let noise: f64 = StandardNormal.sample(&mut rng);
-                v * scale + noise
-            })
-            .collect();
-        let seed = Seed { dt: 0.0, frequency: 160.0, q: 11.0, track: None, arches: None, vertex: None, high: None };
+        let d = at_snr_in_white_noise(&h, 12.0, 5);
+        let seed = Seed { dt: 0.0, frequency: 160.0, q: 11.0, track: None, arches: None, vertex: None, high: None, upper: None };
         let starts = scratchy_starts_from_data(&d, fs, &seed, 3);
         let (dt, x) = &starts[0];
         assert!((x[0] - truth.0).abs() < 0.3, "carrier {} Hz: {starts:?}", x[0]);

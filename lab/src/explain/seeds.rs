@@ -49,6 +49,25 @@ pub struct Seed {
     /// when the loudest tile is below it: `(dt, frequency)`. A Koi Fish's
     /// head, loud at 15-50 Hz, can outshine its blip; this finds the blip.
     pub high: Option<(f64, f64)>,
+    /// Where a whistle is looked for when the loudest tile is below
+    /// [`WHISTLE_BAND`] (a low noise excursion or glitch can outshine it).
+    pub upper: Option<Upper>,
+}
+
+/// The lowest frequency (Hz) a whistle's vertex is looked for at: the
+/// whistle scene's lower bound on `f_turn`.
+pub const WHISTLE_BAND: f64 = 150.0;
+
+/// The loudest pixel at or above [`WHISTLE_BAND`] in the search span, and
+/// the vertex time the data's phase symmetry gives at its frequency.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Upper {
+    /// Its time from the window's centre (s).
+    pub dt: f64,
+    /// Its frequency (Hz).
+    pub frequency: f64,
+    /// As [`Seed::vertex`], around this frequency.
+    pub vertex: Option<f64>,
 }
 
 /// Where a Koi Fish's blip is looked for when the loudest tile is lower (Hz).
@@ -119,17 +138,22 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
     // inverted V).
     let near: Vec<(f64, f64, f64)> =
         ridge.into_iter().filter(|(t, f, _)| (t - dt).abs() <= 0.4 && *f >= frequency / 3.0 && *f <= 3.0 * frequency).collect();
-    let high = (frequency < HIGH_BAND)
-        .then(|| {
-            let search = |t: f64| (t - win.gps_centre).abs() <= 0.25;
-            let pixels = image.times.iter().enumerate().filter(|(_, t)| search(**t)).flat_map(|(i, t)| {
-                let column = &image.values[i * nf..(i + 1) * nf];
-                image.frequencies.iter().zip(column).filter(|(f, _)| **f >= HIGH_BAND).map(move |(f, e)| (*t, *f, *e))
-            });
-            pixels.fold(None, |best: Option<(f64, f64, f64)>, p| if best.is_none_or(|b| p.2 > b.2) { Some(p) } else { best })
-        })
-        .flatten()
-        .map(|(t, f, _)| (t - win.gps_centre, f));
+    // The loudest pixel at or above `band` Hz within 0.25 s of the centre: `(dt, f)`.
+    let loudest_above = |band: f64| {
+        let search = |t: f64| (t - win.gps_centre).abs() <= 0.25;
+        let pixels = image.times.iter().enumerate().filter(|(_, t)| search(**t)).flat_map(|(i, t)| {
+            let column = &image.values[i * nf..(i + 1) * nf];
+            image.frequencies.iter().zip(column).filter(move |(f, _)| **f >= band).map(move |(f, e)| (*t, *f, *e))
+        });
+        let best = pixels.fold(None, |best: Option<(f64, f64, f64)>, p| if best.is_none_or(|b| p.2 > b.2) { Some(p) } else { best });
+        best.map(|(t, f, _)| (t - win.gps_centre, f))
+    };
+    let high = (frequency < HIGH_BAND).then(|| loudest_above(HIGH_BAND)).flatten();
+    let upper = (frequency < WHISTLE_BAND).then(|| loudest_above(WHISTLE_BAND)).flatten().map(|(dt, frequency)| Upper {
+        dt,
+        frequency,
+        vertex: vertex(&win.d, sample_rate, frequency),
+    });
     Ok(Seed {
         dt,
         frequency,
@@ -138,6 +162,7 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
         arches: arches(&win.d, sample_rate, frequency),
         vertex: vertex(&win.d, sample_rate, frequency),
         high,
+        upper,
     })
 }
 
