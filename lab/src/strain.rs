@@ -34,6 +34,11 @@ pub const SAMPLE_RATE: f64 = 4096.0;
 /// computed over: that of the glitch datasets.
 const SIGNAL_BAND: (f64, f64) = (20.0, 2000.0);
 
+/// Whether `f` (Hz) lies in [`SIGNAL_BAND`].
+fn in_signal_band(f: f64) -> bool {
+    (SIGNAL_BAND.0..=SIGNAL_BAND.1).contains(&f)
+}
+
 /// Seconds of strain each injected signal is drawn over, centred on it.
 /// (Until 2026-11-26 it was 1 s, which cut long glitches short: a 2.5 s
 /// Scratchy was injected as a 1 s one.)
@@ -249,7 +254,7 @@ fn inject<R: Rng>(
     let window = (INJECTION_WINDOW * fs) as usize;
     let df = fs / window as f64;
     let psd: Vec<f64> = (0..=window / 2).map(|k| curve.psd_at(k as f64 * df)).collect();
-    let band = |k: usize| (SIGNAL_BAND.0..=SIGNAL_BAND.1).contains(&(k as f64 * df));
+    let band = |k: usize| in_signal_band(k as f64 * df);
     let mut planner = RealFftPlanner::<f64>::new();
     let (fft, ifft) = (planner.plan_fft_forward(window), planner.plan_fft_inverse(window));
     let taper = injection_taper(window, fs);
@@ -282,7 +287,8 @@ fn inject<R: Rng>(
             0.5 * INJECTION_WINDOW
         };
         let window_start = ((t - centre) * fs).round() as usize;
-        if o.gaps.iter().any(|&(s, l)| t + centre > s && t - centre < s + l) {
+        // The window, t - centre to t - centre + INJECTION_WINDOW, must miss every gap.
+        if o.gaps.iter().any(|&(s, l)| t - centre < s + l && t - centre + INJECTION_WINDOW > s) {
             continue;
         }
         let h = match &generated {
@@ -353,8 +359,7 @@ fn coloured(
     let mut spectrum = fft.make_output_vec();
     fft.process(&mut input, &mut spectrum).map_err(|e| Error::Bind(format!("FFT failed: {e}")))?;
     for (k, x) in spectrum.iter_mut().enumerate() {
-        let in_band = (SIGNAL_BAND.0..=SIGNAL_BAND.1).contains(&(k as f64));
-        *x *= if in_band { (psd_1hz[k] * fs / 2.0).sqrt() / 1e-21 / w.len() as f64 } else { 0.0 };
+        *x *= if in_signal_band(k as f64) { (psd_1hz[k] * fs / 2.0).sqrt() / 1e-21 / w.len() as f64 } else { 0.0 };
     }
     let mut h = ifft.make_output_vec();
     ifft.process(&mut spectrum, &mut h).map_err(|e| Error::Bind(format!("inverse FFT failed: {e}")))?;

@@ -162,8 +162,6 @@ pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) ->
 const SCRATCHY_F0: (f64, f64) = (20.0, 600.0);
 /// Arch rates (Hz) the comb search tries.
 const SCRATCHY_RATES: (f64, f64) = (8.0, 32.0);
-/// The scratchy scene's upper bound on `wobble`.
-const SCRATCHY_MAX_WOBBLE: f64 = 0.4;
 /// Envelope durations (s) the search tries at each centre.
 const SCRATCHY_DURATIONS: [f64; 2] = [1.0, 1.8];
 /// Modulation indices `β` of the comb search's weights, and the step of the coherent scan.
@@ -171,6 +169,11 @@ const COMB_BETAS: [f64; 3] = [0.0, 2.0, 4.5];
 const BETA_STEP: f64 = 0.5;
 /// The largest `β` scanned: 0.4 swing on a 600 Hz carrier at 30 arches a second.
 const MAX_BETA: f64 = 8.0;
+/// Lines kept beyond `⌈β⌉` on each side of a comb: the `J_m(β)` past them
+/// hold under 1e-4 of its power.
+const COMB_MARGIN: i64 = 4;
+/// The most lines on each side of any comb the search uses.
+const MAX_M: i64 = MAX_BETA as i64 + COMB_MARGIN;
 /// Arch phases the coherent scan tries.
 const PHASES: usize = 16;
 /// Combs per envelope refined coherently.
@@ -178,11 +181,10 @@ const COMBS_REFINED: usize = 6;
 
 /// The Fourier coefficients `c_m`, `|m| ≤ M`, of one period of the
 /// arches with their phase swing, `½(1 − cos θ) e^{iβ sin θ}` (real: the
-/// function is Hermitian in θ), with `M = ⌈β⌉ + 4`: beyond it the `J_m(β)`
-/// they are made of are negligible. Index `m + M`.
+/// function is Hermitian in θ), with `M = ⌈β⌉ +` [`COMB_MARGIN`]. Index `m + M`.
 fn comb_coefficients(beta: f64) -> Vec<f64> {
     const SAMPLES: usize = 64;
-    let m_max = beta.ceil() as i64 + 4;
+    let m_max = beta.ceil() as i64 + COMB_MARGIN;
     (-m_max..=m_max)
         .map(|m| {
             let sum: f64 = (0..SAMPLES)
@@ -222,11 +224,10 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
             c.iter().enumerate().map(|(i, c)| (i as i64 - m_max, c * c / total)).filter(|(_, w)| *w > 1e-3).collect()
         })
         .collect();
-    let reach = COMB_BETAS.iter().map(|b| b.ceil() as i64 + 4).max().unwrap_or(0) * r_hi;
+    let reach = comb_weights.iter().flatten().map(|(m, _)| m.abs()).max().unwrap_or(0) * r_hi;
     let betas: Vec<(f64, Vec<f64>)> =
         (0..=(MAX_BETA / BETA_STEP) as usize).map(|i| i as f64 * BETA_STEP).map(|b| (b, comb_coefficients(b))).collect();
     // e^{imψ} for each arch phase ψ and |m| ≤ MAX_M (the largest β's comb).
-    const MAX_M: i64 = MAX_BETA as i64 + 4;
     let turns: Vec<Vec<Complex64>> = (0..PHASES)
         .map(|p| (-MAX_M..=MAX_M).map(|m| Complex64::from_polar(1.0, m as f64 * TAU * p as f64 / PHASES as f64)).collect())
         .collect();
@@ -310,7 +311,8 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
                 // ψ = 2π rate dt: the dt nearest the envelope's centre with that phase.
                 let turns = psi / TAU - rate * dt_e;
                 let dt = dt_e + (turns - turns.round()) / rate;
-                let wobble = (beta * rate / f0).min(SCRATCHY_MAX_WOBBLE);
+                // Past the scene's bound, the fit clamps it.
+                let wobble = beta * rate / f0;
                 let snr = if norm > 0.0 { match_ / (0.5 * norm).sqrt() } else { 0.0 };
                 found.push((snr, (dt, vec![f0, rate, duration, wobble])));
             }
@@ -392,7 +394,7 @@ mod tests {
         let expected = [0.0, 0.0, 0.0, -0.25, 0.5, -0.25, 0.0, 0.0, 0.0];
         assert!(c.iter().zip(expected).all(|(c, e)| (c - e).abs() < 1e-12), "{c:?}");
         // Parseval: Σ c_m² is the mean of |½(1 − cos θ)|², 3/8, whatever the
-        // swing; the lines beyond ⌈β⌉ + 4 hold under 1e-4 of it.
+        // swing; the lines beyond ⌈β⌉ + COMB_MARGIN hold under 1e-4 of it.
         for beta in [1.0, 3.7, 8.0] {
             let c = comb_coefficients(beta);
             let sum: f64 = c.iter().map(|c| c * c).sum();
