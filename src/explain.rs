@@ -142,9 +142,23 @@ pub fn campaign(out: &Path, per_class: usize, seed: u64, snr: Option<(f64, f64)>
     }
     let mut seconds: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
     seconds.sort_by(f64::total_cmp);
+    let families: Vec<String> = gwml_lab::explain::FAMILIES
+        .iter()
+        .map(|family| {
+            let mut s: Vec<f64> = outcomes
+                .iter()
+                .flat_map(|o| o.explanation.fits.iter())
+                .filter(|f| f.family.scene == family.scene)
+                .map(|f| f.seconds)
+                .collect();
+            s.sort_by(f64::total_cmp);
+            format!("{} {:.3} s", family.scene, s.get(s.len() / 2).copied().unwrap_or(f64::NAN))
+        })
+        .collect();
     let mut md = format!(
         "# gwml explain: injection campaign\n\n`gwml experiment explain --seed {seed}{}{}{}`: {per_class} injections per class into simulated aLIGO strain \
-         {}, each explained in a 2 s window. Time per trigger (one thread): median {:.2} s, 90th percentile {:.2} s.\n\n\
+         {}, each explained in a 2 s window. Time per trigger (one thread): median {:.2} s, 90th percentile {:.2} s; per family \
+         (median): {}.\n\n\
          | class | injections | right family | param: within 3σ (of those with σ), median relative error |\n|---|---|---|---|\n",
         if per_class == 100 { String::new() } else { format!(" --per-class {per_class}") },
         snr.map_or(String::new(), |(lo, hi)| format!(" --snr {lo}..{hi}")),
@@ -156,6 +170,7 @@ pub fn campaign(out: &Path, per_class: usize, seed: u64, snr: Option<(f64, f64)>
         snr.map_or(format!("at each class's own SNR range after Gravity Spy, from {MIN_SNR} up"), |(lo, hi)| format!("at SNR {lo}–{hi}")),
         seconds[seconds.len() / 2],
         seconds[seconds.len() * 9 / 10],
+        families.join(", "),
     );
     for (label, n, right, params) in summarise(&outcomes) {
         let p: Vec<String> =

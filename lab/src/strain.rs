@@ -200,7 +200,7 @@ pub fn simulate_with(o: &StrainOptions, shape: &mut ShapeSource<'_>) -> Result<(
 }
 
 /// The PSD as a function of frequency, positive everywhere.
-fn psd_curve(psd: &NoiseCurve) -> Result<Spectrum, Error> {
+pub(crate) fn psd_curve(psd: &NoiseCurve) -> Result<Spectrum, Error> {
     match psd {
         NoiseCurve::File(s) => Ok(s.clone()),
         NoiseCurve::Aligo => {

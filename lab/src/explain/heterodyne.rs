@@ -46,6 +46,11 @@ const HALVES: [f64; 7] = [0.06, 0.08, 0.11, 0.15, 0.2, 0.27, 0.35];
 /// looked for from the tile's frequency to a span past it.
 const REACH: f64 = 0.08;
 
+/// How many of the best whistle shapes are searched again at vertex times
+/// [`RETIME`] s away.
+const SHAPES_RETIMED: usize = 4;
+const RETIME: [f64; 7] = [-0.006, -0.004, -0.002, 0.0, 0.002, 0.004, 0.006];
+
 /// Searches whistle shapes over a window of `n` samples at `fs` Hz.
 pub struct WhistleSearch {
     fft: Arc<dyn Fft<f64>>,
@@ -151,6 +156,30 @@ pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) ->
                 for (i, (f_turn, snr)) in search.scan_spans(d, (dt, f, half), (first, SPAN_STEP, count), reach).into_iter().enumerate() {
                     found.push((snr, (dt, vec![f_turn, first + i as f64 * SPAN_STEP, half])));
                 }
+            }
+        }
+    }
+    found.sort_by(|a, b| b.0.total_cmp(&a.0));
+    // Around the best few shapes: the vertex time a few ms either way (a
+    // sweep's arms slip by radians when it is off) and spans between the
+    // grid's, the vertex frequency tuned near the one found.
+    let mut best: Vec<(f64, Start)> = Vec::new();
+    for (_, (dt, x)) in &found {
+        if best.len() == SHAPES_RETIMED {
+            break;
+        }
+        if best.iter().all(|(_, (t, y))| (t - dt).abs() > 0.01 || (y[0] - x[0]).abs() > 20.0 || y[2] != x[2]) {
+            best.push((0.0, (*dt, x.clone())));
+        }
+    }
+    for (_, (dt, x)) in best {
+        let (f_turn, span, half) = (x[0], x[1], x[2]);
+        let margin = 0.02 * f_turn;
+        for shift in RETIME {
+            let first = span - 2.0 * SPAN_STEP / 2.0;
+            let scanned = search.scan_spans(d, (dt + shift, f_turn, half), (first, SPAN_STEP / 2.0, 5), |_| (margin, margin));
+            for (i, (f, snr)) in scanned.into_iter().enumerate() {
+                found.push((snr, (dt + shift, vec![f, first + i as f64 * SPAN_STEP / 2.0, half])));
             }
         }
     }
@@ -324,21 +353,8 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_support::at_snr_in_white_noise;
     use super::*;
-    use rand::SeedableRng;
-    use rand_distr::{Distribution, StandardNormal};
-
-    /// `h` scaled to SNR `snr` in unit white noise drawn from `seed`.
-    fn at_snr_in_white_noise(h: &[f64], snr: f64, seed: u64) -> Vec<f64> {
-        let scale = snr / h.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-        h.iter()
-            .map(|v| {
-                let noise: f64 = StandardNormal.sample(&mut rng);
-                v * scale + noise
-            })
-            .collect()
-    }
 
     /// A unit-amplitude whistle (std::glitch's formula) at `t0` s.
     fn whistle(n: usize, fs: f64, t0: f64, f: f64, span: f64, half: f64) -> Vec<f64> {

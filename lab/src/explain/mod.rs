@@ -6,7 +6,10 @@
 //! The scenes are `lab/models/glitch/explain.gw` (its header gives the
 //! likelihood). For each family, [`Explainer::explain`]:
 //! 1. tries a grid of starting shapes seeded from the trigger's loudest
-//!    Q tile ([`Seed`]: time, frequency, Q), taking each start's amplitude
+//!    Q tile ([`Seed`]: time, frequency, Q), shapes found in the data by
+//!    searches cheaper than the fit (`heterodyne.rs`, `fringes.rs`) and,
+//!    for a Koi Fish, from the Tomte fit's head (`residual.rs`), taking
+//!    each start's amplitude
 //!    and phase from the data's projection on the template's two
 //!    quadratures (two forward evaluations, no optimiser);
 //! 2. refines the best [`STARTS_REFINED`] starts with L-BFGS inside the
@@ -21,16 +24,20 @@
 
 mod campaign;
 mod causes;
+mod fringes;
 mod heterodyne;
 mod rates;
 mod report;
+mod residual;
 mod seeds;
 
 pub use campaign::*;
 pub use causes::*;
+pub use fringes::*;
 pub use heterodyne::*;
 pub use rates::*;
 pub use report::*;
+pub use residual::*;
 pub use seeds::*;
 
 use gwml_compiler::Options;
@@ -38,6 +45,7 @@ use gwml_runtime::fit::{bic, fit_run, laplace_evidence, minimize, Algorithm, Sco
 use gwml_runtime::{Error, Model, Run, Scene, Value};
 use gwml_strain::whitening::Whitened;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
+use std::time::Instant;
 
 /// The scenes of the fits.
 pub const EXPLAIN_SOURCE: &str = include_str!("../../models/glitch/explain.gw");
@@ -51,6 +59,10 @@ type Start = (f64, Vec<f64>);
 /// Starting points found in the data: from the whitened window and its
 /// sample rate (Hz).
 type DataStarts = fn(&[f64], f64, &Seed) -> Vec<Start>;
+
+/// Starts built on another family's fit: from that fit and the whitened
+/// window at the full rate (and that rate).
+type FitStarts = fn(&FamilyFit, &[f64], f64) -> Vec<Start>;
 
 /// A free param of a fit scene: name, unit, bounds.
 type FreeParam = (String, String, Option<(f64, f64)>);
@@ -67,6 +79,9 @@ pub struct Family {
     starts: fn(&Seed) -> Vec<Start>,
     /// More starting points found in the data (whitened window, its rate).
     data_starts: Option<DataStarts>,
+    /// More starting points built on the fit of another family (its
+    /// scene's name), which is fitted first.
+    after: Option<(&'static str, FitStarts)>,
     /// The highest frequency (Hz) its whitened templates carry energy at
     /// within the bounds: the fit runs at the lowest rate whose Nyquist
     /// frequency is above it ([`factor_for`]).
@@ -75,17 +90,47 @@ pub struct Family {
 
 /// Every candidate, in the order of `explain.gw`.
 pub const FAMILIES: [Family; 7] = [
-    Family { scene: "blip", label: "Blip", starts: blip_starts, data_starts: None, top: f64::INFINITY },
-    Family { scene: "koi_fish", label: "Koi Fish", starts: koi_fish_starts, data_starts: None, top: f64::INFINITY },
-    Family { scene: "whistle", label: "Whistle", starts: whistle_starts, data_starts: Some(whistle_data_starts), top: f64::INFINITY },
-    Family { scene: "scratchy", label: "Scratchy", starts: scratchy_starts, data_starts: Some(scratchy_data_starts), top: f64::INFINITY },
+    Family { scene: "blip", label: "Blip", starts: blip_starts, data_starts: None, after: None, top: f64::INFINITY },
+    Family {
+        scene: "koi_fish",
+        label: "Koi Fish",
+        starts: koi_fish_starts,
+        data_starts: None,
+        after: Some(("tomte", koi_fish_from_head)),
+        top: f64::INFINITY,
+    },
+    Family {
+        scene: "whistle",
+        label: "Whistle",
+        starts: whistle_starts,
+        data_starts: Some(whistle_data_starts),
+        after: None,
+        top: f64::INFINITY,
+    },
+    // A carrier of at most 600 Hz swung by at most 40 %, and the arches'
+    // sidelines a few rates (≤ 40 Hz) beyond: below 1000 Hz.
+    Family {
+        scene: "scratchy",
+        label: "Scratchy",
+        starts: scratchy_starts,
+        data_starts: Some(scratchy_data_starts),
+        after: None,
+        top: 1000.0,
+    },
     // f0 ≤ 75 Hz at Q ≥ 1.2: the envelope's spectrum has a 1/e half-width
     // of √2 f0 / Q ≤ 88 Hz, so at 400 Hz it is down by e^-13.
-    Family { scene: "tomte", label: "Tomte", starts: tomte_starts, data_starts: None, top: 400.0 },
+    Family { scene: "tomte", label: "Tomte", starts: tomte_starts, data_starts: None, after: None, top: 400.0 },
     // The third harmonic of fringes of at most 100 Hz.
-    Family { scene: "scattered_light", label: "Scattered Light", starts: scattered_light_starts, data_starts: None, top: 400.0 },
+    Family {
+        scene: "scattered_light",
+        label: "Scattered Light",
+        starts: scattered_light_starts,
+        data_starts: Some(scattered_light_data_starts),
+        after: None,
+        top: 400.0,
+    },
     // The inspiral ends at its ISCO: 191 Hz for the lightest binary of the bounds.
-    Family { scene: "chirp", label: "Chirp", starts: chirp_starts, data_starts: None, top: 400.0 },
+    Family { scene: "chirp", label: "Chirp", starts: chirp_starts, data_starts: None, after: None, top: 400.0 },
 ];
 
 /// Every combination of one value per axis, each at time offset `dt`.
@@ -118,9 +163,7 @@ fn koi_fish_starts(s: &Seed) -> Vec<Start> {
         Some((dt, f)) => {
             let lead = (dt - s.dt).clamp(0.005, 0.06);
             let heads = scaled(s.frequency, [0.9, 1.1]);
-            let mut starts: Vec<Start> = at(dt, shape(&scaled(f, [0.8, 1.0, 1.25]), &heads, lead)).collect();
-            starts.extend([0.01, 0.025].into_iter().flat_map(|lead| at(s.dt + lead, shape(&[90.0, 130.0, 180.0, 240.0], &heads, lead))));
-            starts
+            at(dt, shape(&scaled(f, [0.8, 1.0, 1.25]), &heads, lead)).collect()
         }
     }
 }
@@ -138,6 +181,16 @@ fn tomte_starts(s: &Seed) -> Vec<Start> {
 fn scattered_light_starts(s: &Seed) -> Vec<Start> {
     let f = s.frequency.clamp(15.0, 100.0);
     grid(s.dt, &[&scaled(f, [0.8, 0.9, 1.0, 1.1, 1.25]), &[0.15, 0.25, 0.4, 0.6, 1.0, 1.6, 2.5], &[0.2], &[2.0]])
+}
+
+/// How many of the fringe search's arch shapes become starts (each with
+/// a few bounces and durations).
+const SCATTERED_LIGHT_DATA_STARTS: usize = 4;
+
+// The arches' fringe frequency, surface motion and time, from tracks in
+// the data's spectrogram refined by a coherent fringe search (`fringes.rs`).
+fn scattered_light_data_starts(d: &[f64], fs: f64, _: &Seed) -> Vec<Start> {
+    scattered_light_starts_from_data(d, fs, SCATTERED_LIGHT_DATA_STARTS)
 }
 
 // At the vertex the data's phase symmetry finds ([`Seed::vertex`]): V's
@@ -315,6 +368,8 @@ pub struct FamilyFit {
     pub model: Vec<f64>,
     /// Scene evaluations the fit took (forward, and value with gradient).
     pub evaluations: usize,
+    /// Seconds the fit took, its starts' searches included (one thread).
+    pub seconds: f64,
 }
 
 impl FamilyFit {
@@ -415,11 +470,20 @@ impl Explainer {
             }
         }
         let at = |factor: usize| rates.iter().find(|r| r.factor == factor).expect("every factor decimated");
-        let mut fits = self
-            .scenes
-            .iter()
-            .map(|(family, scene, factor)| fit_family(family, scene, (at(*factor), self.sample_rate / *factor as f64), seed))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut fits: Vec<FamilyFit> = Vec::with_capacity(self.scenes.len());
+        // Families that build on another's fit go after the others.
+        for building in [false, true] {
+            for (family, scene, factor) in self.scenes.iter().filter(|(f, ..)| f.after.is_some() == building) {
+                let clock = Instant::now();
+                let after = family.after.and_then(|(base, starts)| {
+                    let fit = fits.iter().find(|f| f.family.scene == base)?;
+                    Some(starts(fit, d, self.sample_rate))
+                });
+                let mut fit = fit_family(family, scene, (at(*factor), self.sample_rate / *factor as f64), seed, after.unwrap_or_default())?;
+                fit.seconds = clock.elapsed().as_secs_f64();
+                fits.push(fit);
+            }
+        }
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
         let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();
         Ok(Explanation { fits, noise_loss, samples: d.len() })
@@ -446,9 +510,16 @@ fn set(run: &mut Run, names: &[FreeParam], x: &[f64]) -> Result<(), Error> {
     Ok(())
 }
 
-/// Fits one family to the window at its rate: starts, L-BFGS, Fisher
-/// matrix and evidence, with the loss and model of the full-rate window.
-fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decimated, f64), seed: &Seed) -> Result<FamilyFit, Error> {
+/// Fits one family to the window at its rate: starts (its own, then
+/// `more`), L-BFGS, Fisher matrix and evidence, with the loss and model of
+/// the full-rate window.
+fn fit_family(
+    family: &Family,
+    scene: &Scene,
+    (window, rate): (&Decimated, f64),
+    seed: &Seed,
+    more: Vec<Start>,
+) -> Result<FamilyFit, Error> {
     let (d, psd) = (&window.d, &window.psd);
     let mut run = scene.bind();
     run.input_real("d", d)?;
@@ -473,6 +544,7 @@ fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decimated, f64),
         if let Some(from_data) = family.data_starts {
             starts.extend(from_data(d, rate, seed));
         }
+        starts.extend(more);
         for (dt, shape) in starts {
             let mut x = vec![dt, 1.0, 0.0];
             x.extend(shape);
@@ -543,5 +615,32 @@ fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decimated, f64),
         return Err(Error::Bind(format!("the `{}` scene's `model` is not a real array", family.scene)));
     };
     let model = interpolate(&model, window.factor);
-    Ok(FamilyFit { family: *family, params, chi2_dof: 2.0 * loss / (samples - x.len()) as f64, score, model, evaluations: evaluations + 1 })
+    Ok(FamilyFit {
+        family: *family,
+        params,
+        chi2_dof: 2.0 * loss / (samples - x.len()) as f64,
+        score,
+        model,
+        evaluations: evaluations + 1,
+        seconds: 0.0,
+    })
+}
+
+/// What the start searches' tests share.
+#[cfg(test)]
+mod test_support {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    /// `h` scaled to SNR `snr` in unit white noise drawn from `seed`.
+    pub fn at_snr_in_white_noise(h: &[f64], snr: f64, seed: u64) -> Vec<f64> {
+        let scale = snr / h.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        h.iter()
+            .map(|v| {
+                let noise: f64 = StandardNormal.sample(&mut rng);
+                v * scale + noise
+            })
+            .collect()
+    }
 }

@@ -45,10 +45,20 @@ pub struct Decimated {
 /// Cuts the whitened window `d` (PSD `psd` on its `len / 2 + 1` bins) to
 /// `1 / factor` of its rate; `factor` must divide `d.len()`.
 pub fn decimate(d: &[f64], psd: &[f64], factor: usize) -> Decimated {
+    let low = downsample(d, factor);
+    let m = low.len();
+    let energy = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
+    Decimated { factor, cut_loss: 0.5 * (energy(d) - energy(&low)), d: low, psd: psd[..m / 2 + 1].to_vec() }
+}
+
+/// The whitened series `d`'s bins below `1 / factor` of its rate's Nyquist
+/// frequency, at that rate, scaled so white noise keeps unit variance per
+/// sample; `factor` must divide `d.len()`.
+pub fn downsample(d: &[f64], factor: usize) -> Vec<f64> {
     let n = d.len();
     let m = n / factor;
     if factor == 1 {
-        return Decimated { factor, d: d.to_vec(), psd: psd.to_vec(), cut_loss: 0.0 };
+        return d.to_vec();
     }
     let mut planner = RealFftPlanner::<f64>::new();
     let mut input = d.to_vec();
@@ -63,9 +73,7 @@ pub fn decimate(d: &[f64], psd: &[f64], factor: usize) -> Decimated {
     let mut low = inverse.make_output_vec();
     inverse.process(&mut kept, &mut low).expect("buffers sized by the plan");
     let scale = (factor as f64).sqrt() / n as f64;
-    let low: Vec<f64> = low.iter().map(|v| v * scale).collect();
-    let energy = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
-    Decimated { factor, cut_loss: 0.5 * (energy(d) - energy(&low)), d: low, psd: psd[..m / 2 + 1].to_vec() }
+    low.iter().map(|v| v * scale).collect()
 }
 
 /// A series at `1 / factor` of the rate, with unit noise variance per

@@ -103,6 +103,7 @@ fn fit_json(e: &Explanation, f: &FamilyFit, gps_centre: f64) -> Json {
         "ln_bayes_factor_vs_best": e.ln_bayes_vs_best(f),
         "bic": f.score.bic,
         "evaluations": f.evaluations,
+        "seconds": f.seconds,
     })
 }
 
