@@ -10,29 +10,25 @@ use gwml_strain::whitening::{whiten_series, WhitenOptions, Whitener};
 
 #[test]
 fn each_family_is_told_apart_and_its_params_recovered() {
-    // Koi Fish and Scattered Light are left out. The benchmark's Koi Fish
-    // head (0.5-4 times the blip at 15-45 Hz, long) carries most of the
-    // whitened energy, so at SNR 15-30 its blip has an SNR of ~3-6 and a
-    // Tomte explains the window about as well; scattered-light arches are
-    // longer than the 2 s window and win under half the time (README).
-    let o = CampaignOptions { per_class: 4, classes: vec![1, 3, 4, 5, 6], snr: Some((15.0, 30.0)), window: 2.0, seed: 3 };
+    let o = CampaignOptions { per_class: 4, classes: (1..GLITCH_CLASSES.len()).collect(), snr: Some((15.0, 30.0)), window: 2.0, seed: 3 };
     let outcomes = run_campaign(&o, |_| {}).unwrap();
-    assert_eq!(outcomes.len(), 20);
+    assert_eq!(outcomes.len(), 28);
     // A blip below 80 Hz (they start at 70 Hz) may be called a Tomte
     // (25-55 Hz), and that is the prior's verdict.
     let f0 = |o: &Outcome| o.injection.params.iter().find(|p| p.0 == "f0").map_or(f64::NAN, |p| p.1);
     let overlap = |o: &Outcome| o.verdict() == "Tomte" && GLITCH_CLASSES[o.injection.class] == "Blip" && f0(o) < 80.0;
     let right = outcomes.iter().filter(|o| o.right() || overlap(o)).count();
     let verdicts: Vec<(&str, &str, f64)> = outcomes.iter().map(|o| (GLITCH_CLASSES[o.injection.class], o.verdict(), f0(o))).collect();
-    // The campaign (README) wins Blip 90-95 %, Whistle 92-93 %, Scratchy
-    // 100 %, Chirp 92-99 %, Tomte 95 %: ~19 of these 20 on average, with
-    // a binomial spread of ±1.
-    assert!(right >= 16, "{right} of 20 explained by the injected family: {verdicts:?}");
+    // The campaign (README) wins Blip 90-95 %, Koi Fish ~86 % (fewer at
+    // SNR 15-30), Whistle ~95 %, Scratchy 100 %, Chirp 92-99 %, Tomte
+    // 95 %, Scattered Light ~94 %: ~26 of these 28 on average.
+    assert!(right >= 23, "{right} of 28 explained by the injected family: {verdicts:?}");
     for (label, n, right, params) in summarise(&outcomes) {
         let overlapping = outcomes.iter().filter(|o| GLITCH_CLASSES[o.injection.class] == label && overlap(o)).count();
-        // Whistles are won ~93 % of the time at their SNRs (the campaign,
-        // README): a long sweep's search can miss.
-        let misses = if label == "Whistle" { 2 } else { 1 };
+        // Whistles and Koi Fish are won less often (the campaign, README):
+        // a long sweep's search can miss, and a Koi Fish whose head is
+        // below the band looks like a blip.
+        let misses = if label == "Whistle" || label == "Koi Fish" { 2 } else { 1 };
         assert!(right + overlapping + misses >= n, "{label}: {right} of {n} right: {verdicts:?}");
         for (name, with_sigma, within, median) in params {
             // The targets: f0 within 10 % and Q within 30 % in the
@@ -45,6 +41,16 @@ fn each_family_is_told_apart_and_its_params_recovered() {
             }
             if label == "Scratchy" && (name == "f0" || name == "rate") {
                 assert!(median < 0.02, "{label} {name}: median relative error {median}");
+            }
+            // Scattered light's fringe frequency and surface speed come
+            // from the fringe search (fringes.rs): 0.1 % in the campaign's
+            // median, with a tail in the speed (one arch in the window
+            // pins it only by its curvature).
+            if label == "Scattered Light" && name == "f_fringe" {
+                assert!(median < 0.02, "{label} {name}: median relative error {median}");
+            }
+            if label == "Scattered Light" && name == "f_motion" {
+                assert!(median < 0.05, "{label} {name}: median relative error {median}");
             }
             if label == "Blip" && name == "q" {
                 assert!(median < 0.3, "blip q: median relative error {median}");
