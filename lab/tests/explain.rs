@@ -25,10 +25,11 @@ fn each_family_is_told_apart_and_its_params_recovered() {
     assert!(right >= 23, "{right} of 28 explained by the injected family: {verdicts:?}");
     for (label, n, right, params) in summarise(&outcomes) {
         let overlapping = outcomes.iter().filter(|o| GLITCH_CLASSES[o.injection.class] == label && overlap(o)).count();
-        // Whistles and Koi Fish are won less often (the campaign, README):
-        // a long sweep's search can miss, and a Koi Fish whose head is
-        // below the band looks like a blip.
-        let misses = if label == "Whistle" || label == "Koi Fish" { 2 } else { 1 };
+        // Whistles, Koi Fish and Blips are won less often (the campaign,
+        // README): a long sweep's search can miss, a Koi Fish whose head
+        // is below the band looks like a blip, and a blip with an echo
+        // like a Koi Fish (3-5 % of Blips).
+        let misses = if ["Whistle", "Koi Fish", "Blip"].contains(&label) { 2 } else { 1 };
         assert!(right + overlapping + misses >= n, "{label}: {right} of {n} right: {verdicts:?}");
         for (name, with_sigma, within, median) in params {
             // The targets: f0 within 10 % and Q within 30 % in the

@@ -53,7 +53,8 @@ pub const EXPLAIN_SOURCE: &str = include_str!("../../models/glitch/explain.gw");
 /// How many of the best starting points each family refines with L-BFGS.
 pub const STARTS_REFINED: usize = 2;
 
-/// How far inside its bounds (as a fraction of the range) a start puts each param.
+/// How far inside its bounds (as a fraction of the range) a start puts
+/// each shape param.
 const START_MARGIN: f64 = 0.05;
 
 /// A starting point: `dt` and the shape params.
@@ -535,13 +536,18 @@ fn fit_family(
         return Err(Error::Bind(format!("param `{}` of the `{}` scene needs bounds: they are its prior", p.1 .0, family.scene)));
     }
     let bounds: Vec<Option<(f64, f64)>> = free.iter().map(|p| p.2).collect();
-    // Starts are kept a twentieth of the range inside the bounds: the fit
-    // maps a bounded param through a sigmoid, whose slope there is a
-    // twentieth of its middle's (at a thousandth, a start on a bound, such
-    // as a Tomte's asym 1, stalled L-BFGS there: Tomtes 95 -> 90 % with
-    // the looser tolerance below).
+    // Starts keep their shape params a twentieth of the range inside the
+    // bounds: the fit maps a bounded param through a sigmoid, whose slope
+    // there is a twentieth of its middle's (at a thousandth, a start on a
+    // bound, such as a Tomte's asym 1, stalled L-BFGS there: Tomtes 95 ->
+    // 90 % with the looser tolerance below). `dt` and `snr` come from the
+    // data and keep theirs (an SNR floored at a twentieth of its range
+    // started every quiet glitch at SNR 50).
     let inside = |i: usize, v: f64| match bounds[i] {
-        Some((lo, hi)) => v.clamp(lo + START_MARGIN * (hi - lo), hi - START_MARGIN * (hi - lo)),
+        Some((lo, hi)) => {
+            let margin = if i < 3 { 1e-3 } else { START_MARGIN };
+            v.clamp(lo + margin * (hi - lo), hi - margin * (hi - lo))
+        }
         None => v,
     };
     let mut evaluations = 0;
