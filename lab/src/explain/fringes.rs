@@ -10,16 +10,17 @@
 //! 1. **Tracks** (incoherent, coarse). In a spectrogram of the whitened
 //!    data the fringes and their second harmonic follow
 //!    `f = h f_fringe |cos ωτ|`. The power summed along every track of a
-//!    coarse grid (5 % in `f_fringe`, 8 % in `f_motion`, 20 ms in time)
+//!    coarse grid (6 % in `f_fringe`, 8 % in `f_motion`, 25 ms in time)
 //!    ranks candidates: pixels of noise have mean 1, so a track's excess
 //!    over its pixel count, over the count's square root, is a z-score.
+//!    The best track of each band of surface speeds goes on.
 //! 2. **Fringes** (coherent, fine). For one motion and arch time the phase
 //!    is `A s` with `s = sin ωτ ∈ [−1, 1]`, so the match at every `A` is a
 //!    Fourier transform in `s`: the enveloped data spread onto a uniform
 //!    grid in `s` (linear weights), one FFT gives the match at every
 //!    `f_fringe` at once, and its second harmonic at twice the bin. Around
-//!    each candidate the motion (0.5 % steps) and the arch time (4 ms) are
-//!    scanned this way.
+//!    each candidate the motion (0.5 % steps) and the arch time (2 ms, or
+//!    4 ms when the window holds one arch) are scanned this way.
 //!
 //! The templates are not whitened (the whitened data carry no fringes
 //! below the band, and the whitening's slope over an arch only weighs its
