@@ -163,20 +163,20 @@ pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) ->
     // Around the best few shapes: the vertex time a few ms either way (a
     // sweep's arms slip by radians when it is off) and spans between the
     // grid's, the vertex frequency tuned near the one found.
-    let mut best: Vec<(f64, Start)> = Vec::new();
+    let mut best: Vec<Start> = Vec::new();
     for (_, (dt, x)) in &found {
         if best.len() == SHAPES_RETIMED {
             break;
         }
-        if best.iter().all(|(_, (t, y))| (t - dt).abs() > 0.01 || (y[0] - x[0]).abs() > 20.0 || y[2] != x[2]) {
-            best.push((0.0, (*dt, x.clone())));
+        if best.iter().all(|(t, y)| (t - dt).abs() > 0.01 || (y[0] - x[0]).abs() > 20.0 || y[2] != x[2]) {
+            best.push((*dt, x.clone()));
         }
     }
-    for (_, (dt, x)) in best {
+    for (dt, x) in best {
         let (f_turn, span, half) = (x[0], x[1], x[2]);
         let margin = 0.02 * f_turn;
         for shift in RETIME {
-            let first = span - 2.0 * SPAN_STEP / 2.0;
+            let first = span - SPAN_STEP;
             let scanned = search.scan_spans(d, (dt + shift, f_turn, half), (first, SPAN_STEP / 2.0, 5), |_| (margin, margin));
             for (i, (f, snr)) in scanned.into_iter().enumerate() {
                 found.push((snr, (dt + shift, vec![f, first + i as f64 * SPAN_STEP / 2.0, half])));
