@@ -43,6 +43,12 @@ fn each_family_is_told_apart_and_its_params_recovered() {
             if label == "Scratchy" && (name == "f0" || name == "rate") {
                 assert!(median < 0.02, "{label} {name}: median relative error {median}");
             }
+            // A carrier a comb line off, a mode of its own, is tried from
+            // the fit (`scratchy_neighbours`): 68 -> 94 % within 3σ on the
+            // campaign's seed 1.
+            if label == "Scratchy" && name == "f0" {
+                assert_eq!(within, with_sigma, "{label} {name}: {within} of {with_sigma} within 3σ");
+            }
             // Scattered light's fringe frequency and surface speed come
             // from the fringe search (fringes.rs): 0.1 % in the campaign's
             // median, with a tail in the speed (one arch in the window

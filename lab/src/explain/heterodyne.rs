@@ -353,7 +353,7 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
 
 #[cfg(test)]
 mod tests {
-    use super::super::test_support::at_snr_in_white_noise;
+    use super::super::test_support::{at_snr_in_white_noise, scratchy};
     use super::*;
 
     /// A unit-amplitude whistle (std::glitch's formula) at `t0` s.
@@ -388,18 +388,6 @@ mod tests {
             assert!((f_i - f_1).abs() < 1e-6 && (snr_i - snr_1).abs() < 1e-9 * snr_1, "span {i}: {f_i} {snr_i} against {f_1} {snr_1}");
         }
         assert!((scanned[4].0 - 589.1).abs() < 0.5, "{scanned:?}");
-    }
-
-    /// std::glitch's scratchy shape at `t0` s: carrier, rate, duration, wobble.
-    fn scratchy(n: usize, fs: f64, t0: f64, (f0, rate, duration, wobble): (f64, f64, f64, f64)) -> Vec<f64> {
-        (0..n)
-            .map(|k| {
-                let tau = k as f64 / fs - t0;
-                let u = 2.0 * tau / duration;
-                let arches = 0.5 * (1.0 - (TAU * rate * tau).cos());
-                (-u * u).exp() * arches * (TAU * f0 * tau + wobble * f0 / rate * (TAU * rate * tau).sin() + 0.4).cos()
-            })
-            .collect()
     }
 
     #[test]

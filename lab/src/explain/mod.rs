@@ -41,7 +41,7 @@ pub use residual::*;
 pub use seeds::*;
 
 use gwml_compiler::Options;
-use gwml_runtime::fit::{bic, fit_run, laplace_evidence, minimize, Algorithm, Score, Settings};
+use gwml_runtime::fit::{bic, fit_run, laplace_evidence, minimize, Algorithm, Minimum, Score, Settings};
 use gwml_runtime::{Error, Model, Run, Scene, Value};
 use gwml_strain::whitening::Whitened;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
@@ -52,6 +52,14 @@ pub const EXPLAIN_SOURCE: &str = include_str!("../../models/glitch/explain.gw");
 
 /// How many of the best starting points each family refines with L-BFGS.
 pub const STARTS_REFINED: usize = 2;
+
+/// How many of a fit's neighbouring modes ([`Family`]'s `neighbours`),
+/// best matched first, are refined too.
+const NEIGHBOURS_REFINED: usize = 4;
+/// How many times a better neighbour's own neighbours are tried.
+const NEIGHBOUR_ROUNDS: usize = 3;
+/// Fits within this `ln B` of the best have their neighbouring modes tried.
+const NEIGHBOUR_GATE: f64 = 10.0;
 
 /// How far inside its bounds (as a fraction of the range) a start puts
 /// each shape param.
@@ -86,6 +94,9 @@ pub struct Family {
     /// More starting points built on the fit of another family (its
     /// scene's name), which is fitted first.
     after: Option<(&'static str, FitStarts)>,
+    /// Other modes of the likelihood near a fit, given its `dt` and shape
+    /// params: refined after the first fit, and kept if they fit better.
+    neighbours: Option<fn(&Start) -> Vec<Start>>,
     /// The highest frequency (Hz) its whitened templates carry energy at
     /// within the bounds: the fit runs at the lowest rate whose Nyquist
     /// frequency is above it ([`factor_for`]).
@@ -94,13 +105,14 @@ pub struct Family {
 
 /// Every candidate, in the order of `explain.gw`.
 pub const FAMILIES: [Family; 7] = [
-    Family { scene: "blip", label: "Blip", starts: blip_starts, data_starts: None, after: None, top: f64::INFINITY },
+    Family { scene: "blip", label: "Blip", starts: blip_starts, data_starts: None, after: None, neighbours: None, top: f64::INFINITY },
     Family {
         scene: "koi_fish",
         label: "Koi Fish",
         starts: koi_fish_starts,
         data_starts: None,
         after: Some(("tomte", koi_fish_from_head)),
+        neighbours: None,
         top: f64::INFINITY,
     },
     Family {
@@ -109,6 +121,7 @@ pub const FAMILIES: [Family; 7] = [
         starts: whistle_starts,
         data_starts: Some(whistle_data_starts),
         after: None,
+        neighbours: None,
         top: f64::INFINITY,
     },
     // A carrier of at most 600 Hz swung by at most 40 %, and the arches'
@@ -119,11 +132,12 @@ pub const FAMILIES: [Family; 7] = [
         starts: scratchy_starts,
         data_starts: Some(scratchy_data_starts),
         after: None,
+        neighbours: Some(scratchy_neighbours),
         top: 1000.0,
     },
     // f0 ≤ 75 Hz at Q ≥ 1.2: the envelope's spectrum has a 1/e half-width
     // of √2 f0 / Q ≤ 88 Hz, so at 400 Hz it is down by e^-13.
-    Family { scene: "tomte", label: "Tomte", starts: tomte_starts, data_starts: None, after: None, top: 400.0 },
+    Family { scene: "tomte", label: "Tomte", starts: tomte_starts, data_starts: None, after: None, neighbours: None, top: 400.0 },
     // The third harmonic of fringes of at most 100 Hz.
     Family {
         scene: "scattered_light",
@@ -131,10 +145,11 @@ pub const FAMILIES: [Family; 7] = [
         starts: scattered_light_starts,
         data_starts: Some(scattered_light_data_starts),
         after: None,
+        neighbours: None,
         top: 400.0,
     },
     // The inspiral ends at its ISCO: 191 Hz for the lightest binary of the bounds.
-    Family { scene: "chirp", label: "Chirp", starts: chirp_starts, data_starts: None, after: None, top: 400.0 },
+    Family { scene: "chirp", label: "Chirp", starts: chirp_starts, data_starts: None, after: None, neighbours: None, top: 400.0 },
 ];
 
 /// Every combination of one value per axis, each at time offset `dt`.
@@ -256,6 +271,20 @@ fn scratchy_data_starts(d: &[f64], fs: f64, s: &Seed) -> Vec<Start> {
     scratchy_starts_from_data(d, fs, s, SCRATCHY_DATA_STARTS)
 }
 
+/// How many comb lines away from a scratchy fit's carrier the fit is tried again.
+const SCRATCHY_HOPS: [f64; 2] = [-1.0, 1.0];
+
+// A train of arches is a comb of lines `rate` apart (`heterodyne.rs`); a
+// carrier a line off, with another swing, matches nearly as well, and
+// once there L-BFGS stays (seed 1: 32 of 100 carriers were one to three
+// lines off, 26 of them one). Carriers a line away, with the same swing
+// in hertz (`wobble · f0`) or the same `wobble`.
+fn scratchy_neighbours((dt, shape): &Start) -> Vec<Start> {
+    let &[f0, rate, duration, wobble] = shape.as_slice() else { return Vec::new() };
+    let carriers = SCRATCHY_HOPS.iter().map(|k| f0 + k * rate).filter(|f| *f > 0.0);
+    carriers.flat_map(|f| [wobble * f0 / f, wobble].map(|w| (*dt, vec![f, rate, duration, w]))).collect()
+}
+
 // The loudest tile sits just before the merger. A chirp stays in phase
 // over its second in band only with the chirp mass within several
 // percent, so the grid is dense: 9 % steps over the bounds (the chirp's
@@ -351,7 +380,9 @@ pub struct Estimate {
     pub unit: String,
     /// Best fit.
     pub value: f64,
-    /// 1σ from the Fisher matrix (none when it has no inverse).
+    /// 1σ from the Fisher matrix (none when it has no inverse), widened by
+    /// the distance to another mode of the likelihood when one is known
+    /// (a scratchy carrier a comb line off), as a two-mode mixture's.
     pub sigma: Option<f64>,
     /// The prior's bounds (the phase: the period around its estimate).
     pub bounds: (f64, f64),
@@ -483,10 +514,25 @@ impl Explainer {
                     let fit = fits.iter().find(|f| f.family.scene == base)?;
                     Some(starts(fit, d, self.sample_rate))
                 });
-                let mut fit = fit_family(family, scene, (at(*factor), self.sample_rate / *factor as f64), seed, after.unwrap_or_default())?;
+                let window = (at(*factor), self.sample_rate / *factor as f64);
+                let mut fit = fit_family(family, scene, window, Begin::Search(seed, after.unwrap_or_default()))?;
                 fit.seconds = clock.elapsed().as_secs_f64();
                 fits.push(fit);
             }
+        }
+        fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
+        // The neighbouring modes of the fits that compete for the verdict
+        // (only there do their params matter enough to pay for them).
+        let best = fits.first().map_or(f64::NEG_INFINITY, FamilyFit::ln_z);
+        for fit in fits.iter_mut().filter(|f| f.family.neighbours.is_some() && f.ln_z() >= best - NEIGHBOUR_GATE) {
+            let clock = Instant::now();
+            let (family, scene, factor) = self.scenes.iter().find(|(f, ..)| f.scene == fit.family.scene).expect("a compiled family");
+            let window = (at(*factor), self.sample_rate / *factor as f64);
+            let x = fit.params.iter().map(|p| p.value).collect();
+            let mut hopped = fit_family(family, scene, window, Begin::Neighbours(x))?;
+            hopped.seconds = fit.seconds + clock.elapsed().as_secs_f64();
+            hopped.evaluations += fit.evaluations;
+            *fit = hopped;
         }
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
         let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();
@@ -517,13 +563,16 @@ fn set(run: &mut Run, names: &[FreeParam], x: &[f64]) -> Result<(), Error> {
 /// Fits one family to the window at its rate: starts (its own, then
 /// `more`), L-BFGS, Fisher matrix and evidence, with the loss and model of
 /// the full-rate window.
-fn fit_family(
-    family: &Family,
-    scene: &Scene,
-    (window, rate): (&Decimated, f64),
-    seed: &Seed,
-    more: Vec<Start>,
-) -> Result<FamilyFit, Error> {
+/// Where a family's fit begins.
+enum Begin<'a> {
+    /// From its starts for a seed, and `more` (built on another family's fit).
+    Search(&'a Seed, Vec<Start>),
+    /// From a fit's params (`dt`, `snr`, `phi`, shape): the family's
+    /// neighbouring modes are tried, and the best is kept.
+    Neighbours(Vec<f64>),
+}
+
+fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decimated, f64), begin: Begin) -> Result<FamilyFit, Error> {
     let (d, psd) = (&window.d, &window.psd);
     let mut run = scene.bind();
     run.input_real("d", d)?;
@@ -551,38 +600,6 @@ fn fit_family(
         None => v,
     };
     let mut evaluations = 0;
-    // 1. Starting points, each with the amplitude and phase that best match the data.
-    let mut ranked = Vec::new();
-    {
-        let mut starts = (family.starts)(seed);
-        if let Some(from_data) = family.data_starts {
-            starts.extend(from_data(d, rate, seed));
-        }
-        starts.extend(more);
-        for (dt, shape) in starts {
-            let mut x = vec![dt, 1.0, 0.0];
-            x.extend(shape);
-            let mut x: Vec<f64> = x.iter().enumerate().map(|(i, v)| inside(i, *v)).collect();
-            let mut quadrature = [0.0; 2];
-            for (k, phi) in [0.0, FRAC_PI_2].into_iter().enumerate() {
-                x[2] = phi;
-                set(&mut run, &free, &x)?;
-                quadrature[k] = run.forward()?.scalar("overlap")?;
-                evaluations += 1;
-            }
-            let rho = quadrature[0].hypot(quadrature[1]);
-            if rho.is_finite() {
-                x[1] = inside(1, rho);
-                x[2] = quadrature[1].atan2(quadrature[0]);
-                ranked.push((rho, x));
-            }
-        }
-    }
-    ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
-    if ranked.is_empty() {
-        return Err(Error::Bind(format!("no starting point of the `{}` fit has a finite match with the data", family.scene)));
-    }
-    // 2. L-BFGS from the best starts.
     // Loose enough to rank the starts (|ΔL| ≤ 1e-8 L, ~4e-5 for a 2 s
     // window); the best is then polished to 1e-9 below, where the Fisher
     // matrix and σ are taken. On 30 injections per class (seed 4), 1e-9
@@ -590,21 +607,66 @@ fn fit_family(
     // 0.85 s; at 1e-7 fewer Blip fits had a σ (22 of 27 against 26) and,
     // without the polish, scratchy durations were twice as far off.
     let settings = Settings { max_steps: 100, rel_tol: 1e-8, ..Settings::new(Algorithm::Lbfgs) };
-    let mut best: Option<gwml_runtime::fit::Minimum> = None;
-    for (_, x0) in ranked.iter().take(STARTS_REFINED) {
+    let refine = |run: &mut Run, x0: &[f64], evaluations: &mut usize| {
         let eval = |x: &[f64]| -> Result<(f64, Vec<f64>), Error> {
-            set(&mut run, &free, x)?;
+            set(run, &free, x)?;
             let out = run.value_and_grad()?;
             let grad = free.iter().map(|p| out.grad("loss", &p.0).unwrap_or(0.0)).collect();
             Ok((out.scalar("loss")?, grad))
         };
         let m = minimize(eval, x0, &bounds, &settings, |_| {})?;
-        evaluations += m.evaluations;
-        if best.as_ref().is_none_or(|b| m.loss < b.loss) {
-            best = Some(m);
+        *evaluations += m.evaluations;
+        Ok::<_, Error>(m)
+    };
+    let better = |best: Minimum, m: Minimum| if m.loss < best.loss { m } else { best };
+    // The fit's mode, and the best-fitting other mode known (from the neighbours).
+    let (mut best, rival) = match begin {
+        Begin::Search(seed, more) => {
+            // 1. Starting points, each with the amplitude and phase that best match the data.
+            let mut starts = (family.starts)(seed);
+            if let Some(from_data) = family.data_starts {
+                starts.extend(from_data(d, rate, seed));
+            }
+            starts.extend(more);
+            let ranked = rank_starts(&mut run, &free, starts, &inside, &mut evaluations)?;
+            // 2. L-BFGS from the best starts.
+            let mut best: Option<Minimum> = None;
+            for (_, x0) in ranked.iter().take(STARTS_REFINED) {
+                let m = refine(&mut run, x0, &mut evaluations)?;
+                best = Some(match best {
+                    Some(b) => better(b, m),
+                    None => m,
+                });
+            }
+            let best = best
+                .ok_or_else(|| Error::Bind(format!("no starting point of the `{}` fit has a finite match with the data", family.scene)))?;
+            (best, None)
         }
-    }
-    let mut best = best.expect("at least one start");
+        Begin::Neighbours(x) => {
+            let mut minima = vec![refine(&mut run, &x, &mut evaluations)?];
+            // Each better neighbour's own neighbours too (a mode two steps away).
+            for _ in 0..NEIGHBOUR_ROUNDS {
+                let Some(neighbours) = family.neighbours else { break };
+                let best = minima.iter().min_by(|a, b| a.loss.total_cmp(&b.loss)).expect("one minimum");
+                let (loss, near) = (best.loss, neighbours(&(best.x[0], best.x[3..].to_vec())));
+                for (_, x0) in rank_starts(&mut run, &free, near, &inside, &mut evaluations)?.iter().take(NEIGHBOURS_REFINED) {
+                    minima.push(refine(&mut run, x0, &mut evaluations)?);
+                }
+                if minima.iter().all(|m| m.loss >= loss) {
+                    break;
+                }
+            }
+            minima.sort_by(|a, b| a.loss.total_cmp(&b.loss));
+            // Two minima are one mode when every bounded param agrees to a thousandth of its range.
+            let same_mode = |a: &[f64], b: &[f64]| {
+                bounds.iter().zip(a.iter().zip(b)).all(|(r, (a, b))| r.is_none_or(|(lo, hi)| (a - b).abs() <= 1e-3 * (hi - lo)))
+            };
+            let mut minima = minima.into_iter();
+            let best = minima.next().expect("one minimum");
+            let rival = minima.find(|m| !same_mode(&m.x, &best.x));
+            (best, rival)
+        }
+    };
     best.x[2] = best.x[2].rem_euclid(TAU);
     // 3. Fisher matrix and errors at the best fit (a few more steps if it can still improve).
     set(&mut run, &free, &best.x)?;
@@ -619,7 +681,19 @@ fn fit_family(
     let samples = d.len() * window.factor;
     let score =
         Score { loss, params: x.len(), evidence: laplace_evidence(loss, &x, &fit.fisher, &prior), bic: bic(loss, x.len(), samples) };
-    let sigma = fit.covariance.as_ref().ok().map(|c| c.sigma.clone());
+    // With another mode known, σ is that of the two-mode mixture, each
+    // mode weighted by its likelihood (its Laplace volume taken as this
+    // one's): σ² + w₁w₂ Δx². ln Z is left to this mode's (it would gain
+    // ln(1 + e^{−ΔL}) ≤ ln 2).
+    let spread = |i: usize| match &rival {
+        Some(r) if i != 2 => {
+            let w = 1.0 / (1.0 + (r.loss - fit.minimum.loss).max(0.0).exp());
+            w * (1.0 - w) * (x[i] - r.x[i]).powi(2)
+        }
+        _ => 0.0,
+    };
+    let sigma =
+        fit.covariance.as_ref().ok().map(|c| c.sigma.iter().enumerate().map(|(i, s)| (s * s + spread(i)).sqrt()).collect::<Vec<_>>());
     let params = free
         .iter()
         .enumerate()
@@ -646,11 +720,56 @@ fn fit_family(
     })
 }
 
+/// Each start as full params (`dt`, `snr`, `phi`, shape), with the SNR and
+/// phase that best match the data, and that SNR, best first.
+fn rank_starts(
+    run: &mut Run,
+    free: &[FreeParam],
+    starts: Vec<Start>,
+    inside: &dyn Fn(usize, f64) -> f64,
+    evaluations: &mut usize,
+) -> Result<Vec<(f64, Vec<f64>)>, Error> {
+    let mut ranked = Vec::new();
+    for (dt, shape) in starts {
+        let mut x = vec![dt, 1.0, 0.0];
+        x.extend(shape);
+        let mut x: Vec<f64> = x.iter().enumerate().map(|(i, v)| inside(i, *v)).collect();
+        let mut quadrature = [0.0; 2];
+        for (k, phi) in [0.0, FRAC_PI_2].into_iter().enumerate() {
+            x[2] = phi;
+            set(run, free, &x)?;
+            quadrature[k] = run.forward()?.scalar("overlap")?;
+            *evaluations += 1;
+        }
+        let rho = quadrature[0].hypot(quadrature[1]);
+        if rho.is_finite() {
+            x[1] = inside(1, rho);
+            x[2] = quadrature[1].atan2(quadrature[0]);
+            ranked.push((rho, x));
+        }
+    }
+    ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+    Ok(ranked)
+}
+
 /// What the start searches' tests share.
 #[cfg(test)]
 mod test_support {
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
+    use std::f64::consts::TAU;
+
+    /// std::glitch's scratchy shape at `t0` s: carrier, rate, duration, wobble.
+    pub fn scratchy(n: usize, fs: f64, t0: f64, (f0, rate, duration, wobble): (f64, f64, f64, f64)) -> Vec<f64> {
+        (0..n)
+            .map(|k| {
+                let tau = k as f64 / fs - t0;
+                let u = 2.0 * tau / duration;
+                let arches = 0.5 * (1.0 - (TAU * rate * tau).cos());
+                (-u * u).exp() * arches * (TAU * f0 * tau + wobble * f0 / rate * (TAU * rate * tau).sin() + 0.4).cos()
+            })
+            .collect()
+    }
 
     /// `h` scaled to SNR `snr` in unit white noise drawn from `seed`.
     pub fn at_snr_in_white_noise(h: &[f64], snr: f64, seed: u64) -> Vec<f64> {
@@ -662,5 +781,25 @@ mod test_support {
                 v * scale + noise
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scratchy fit's neighbours sit a comb line either side of its
+    /// carrier, with its swing in hertz or its `wobble`, and nothing else moved.
+    #[test]
+    fn scratchy_neighbours_are_a_comb_line_either_side() {
+        let near = scratchy_neighbours(&(0.03, vec![180.0, 17.0, 1.2, 0.1]));
+        let expected = [[163.0, 0.1 * 180.0 / 163.0], [163.0, 0.1], [197.0, 0.1 * 180.0 / 197.0], [197.0, 0.1]];
+        assert_eq!(near.len(), expected.len());
+        for ((dt, shape), [f0, wobble]) in near.iter().zip(expected) {
+            assert_eq!((*dt, shape[1], shape[2]), (0.03, 17.0, 1.2));
+            assert!((shape[0] - f0).abs() < 1e-12 && (shape[3] - wobble).abs() < 1e-12, "{shape:?}");
+        }
+        // A carrier a line below zero is not one.
+        assert_eq!(scratchy_neighbours(&(0.0, vec![10.0, 17.0, 1.2, 0.1])).len(), 2);
     }
 }
