@@ -560,9 +560,6 @@ fn set(run: &mut Run, names: &[FreeParam], x: &[f64]) -> Result<(), Error> {
     Ok(())
 }
 
-/// Fits one family to the window at its rate: starts (its own, then
-/// `more`), L-BFGS, Fisher matrix and evidence, with the loss and model of
-/// the full-rate window.
 /// Where a family's fit begins.
 enum Begin<'a> {
     /// From its starts for a seed, and `more` (built on another family's fit).
@@ -572,6 +569,10 @@ enum Begin<'a> {
     Neighbours(Vec<f64>),
 }
 
+/// Fits one family to the window at its rate, from where `begin` says:
+/// starts ranked by their match, L-BFGS (and, from a fit, its neighbouring
+/// modes), Fisher matrix and evidence, with the loss and model of the
+/// full-rate window.
 fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decimated, f64), begin: Begin) -> Result<FamilyFit, Error> {
     let (d, psd) = (&window.d, &window.psd);
     let mut run = scene.bind();
