@@ -73,6 +73,34 @@ fn each_family_is_told_apart_and_its_params_recovered() {
 }
 
 #[test]
+fn w_and_m_shaped_whistles_are_fitted_with_their_wiggle() {
+    // 40 % of the benchmark's whistles bend their arms (`wiggle`, up to
+    // ±600 Hz). Without it in the fit, the vertex frequency came back
+    // within 3σ for 62 of 93 whistles on the campaign's seed 1; with it
+    // (heterodyne.rs' W and M search, fit.rs' JᵀJ Fisher matrix), 86 of 100.
+    let whistle = GLITCH_CLASSES.iter().position(|c| *c == "Whistle").unwrap();
+    let o = CampaignOptions { per_class: 8, classes: vec![whistle], snr: Some((20.0, 30.0)), window: 2.0, seed: 5 };
+    let outcomes = run_campaign(&o, |_| {}).unwrap();
+    let truth = |o: &Outcome, name: &str| o.injection.params.iter().find(|p| p.0 == name).map_or(f64::NAN, |p| p.1);
+    let bent: Vec<&Outcome> = outcomes.iter().filter(|o| truth(o, "wiggle").abs() > 100.0).collect();
+    assert!(bent.len() >= 2, "{} of 8 whistles bent", bent.len());
+    // Each a Whistle, its vertex frequency, span, width and wiggle all
+    // within 4σ and all but two of them within 3σ (without the wiggle,
+    // bent whistles' vertices were 5-15σ off).
+    let mut pulls = Vec::new();
+    for o in &bent {
+        assert_eq!(o.verdict(), "Whistle");
+        for (name, value, sigma, t) in o.recovered() {
+            let sigma = sigma.unwrap_or_else(|| panic!("{name}: no σ"));
+            pulls.push((name, (value - t) / sigma, truth(o, "wiggle")));
+        }
+    }
+    assert_eq!(pulls.len(), 4 * bent.len());
+    assert!(pulls.iter().all(|p| p.1.abs() < 4.0), "pulls (param, pull, wiggle): {pulls:?}");
+    assert!(pulls.iter().filter(|p| p.1.abs() > 3.0).count() <= 2, "pulls (param, pull, wiggle): {pulls:?}");
+}
+
+#[test]
 fn gaussian_noise_alone_is_explained_as_noise() {
     let strain = StrainOptions {
         duration: 64.0,

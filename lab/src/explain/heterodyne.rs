@@ -51,6 +51,29 @@ const REACH: f64 = 0.08;
 const SHAPES_RETIMED: usize = 4;
 const RETIME: [f64; 7] = [-0.006, -0.004, -0.002, 0.0, 0.002, 0.004, 0.006];
 
+/// Quartic wiggles (Hz; std::glitch's `wiggle`, the frequency's `u⁴`
+/// term: a W when it bends a V's arms up, an M an inverted V's down) tried
+/// around the best V's.
+const WIGGLES: [f64; 12] = [-600.0, -500.0, -400.0, -300.0, -200.0, -100.0, 100.0, 200.0, 300.0, 400.0, 500.0, 600.0];
+/// How many of the best V's are searched again with wiggles.
+const SHAPES_WIGGLED: usize = 2;
+/// The least match (an SNR in white noise) of the best V for W and M
+/// shapes to be searched: the largest of a thousand V's in Gaussian noise
+/// alone is ~4.5.
+const WIGGLE_GATE: f64 = 6.0;
+
+/// The V whose frequency track `f + s u²` is nearest (least squares
+/// under the envelope's energy `e^{−2u²}`) to a whistle's `f_turn + span
+/// u² + wiggle u⁴` has `s = span + 1.5 wiggle` (and `f = f_turn − 0.1875
+/// wiggle`): the normal equations with the moments ⟨u²⟩ = 1/4, ⟨u⁴⟩ =
+/// 3/16, ⟨u⁶⟩ = 15/64 of that weight. Shapes along that ridge match alike.
+const SPAN_PER_WIGGLE: f64 = 1.5;
+/// The fine grid around the best shapes: steps either side, and the
+/// steps in wiggle and span (Hz).
+const FINE_STEPS: i32 = 10;
+const FINE_WIGGLE_STEP: f64 = 10.0;
+const FINE_SPAN_STEP: f64 = 5.0;
+
 /// Searches whistle shapes over a window of `n` samples at `fs` Hz.
 pub struct WhistleSearch {
     fft: Arc<dyn Fft<f64>>,
@@ -68,29 +91,31 @@ impl WhistleSearch {
     }
 
     /// For a whistle with vertex at `dt` s from the window's centre, span
-    /// `span` Hz and half-width `half` s, the vertex frequency within
-    /// `reach` Hz of `f` that best matches the whitened data `d`, and that
-    /// match as an SNR in unit-variance white noise (`|z| / √(Σ|a|²/2)`).
+    /// `span` Hz, half-width `half` s and no wiggle, the vertex frequency
+    /// within `reach` Hz of `f` that best matches the whitened data `d`,
+    /// and that match as an SNR in unit-variance white noise
+    /// (`|z| / √(Σ|a|²/2)`).
     pub fn tune(&mut self, d: &[f64], (dt, f, span, half): (f64, f64, f64, f64), reach: f64) -> (f64, f64) {
-        self.scan_spans(d, (dt, f, half), (span, 0.0, 1), |_| (reach, reach))[0]
+        self.scan_spans(d, (dt, f, half, 0.0), (span, 0.0, 1), |_| (reach, reach))[0]
     }
 
     /// [`WhistleSearch::tune`] for `count` spans `first, first + step, …`
-    /// at one vertex time and half-width, the vertex looked for from
+    /// at one vertex time, half-width and quartic `wiggle` (Hz, as
+    /// std::glitch's whistle has it), the vertex looked for from
     /// `reach(span).0` Hz below `f` to `reach(span).1` above: one FFT per
     /// span, the product's chirp advanced by a per-sample rotation from one
     /// span to the next.
     pub fn scan_spans(
         &mut self,
         d: &[f64],
-        (dt, f, half): (f64, f64, f64),
+        (dt, f, half, wiggle): (f64, f64, f64, f64),
         (first, step, count): (f64, f64, usize),
         reach: impl Fn(f64) -> (f64, f64),
     ) -> Vec<(f64, f64)> {
         let n = d.len();
         let centre = 0.5 * n as f64 / self.fs + dt;
-        // Per sample: d_k e^{-u²} e^{−2πiτ(f + first·u²/3)} and the rotation
-        // e^{−2πiτ step u²/3} that moves it to the next span.
+        // Per sample: d_k e^{-u²} e^{−2πiτ(f + first·u²/3 + wiggle·u⁴/5)} and
+        // the rotation e^{−2πiτ step u²/3} that moves it to the next span.
         let mut product = Vec::with_capacity(n);
         let mut rotation = Vec::with_capacity(n);
         let mut norm = 0.0;
@@ -105,7 +130,8 @@ impl WhistleSearch {
             let envelope = (-u * u).exp();
             norm += envelope * envelope;
             let chirp = -TAU * tau * u * u / 3.0;
-            product.push(Complex64::from_polar(v * envelope, -TAU * tau * f + chirp * first));
+            let bend = -TAU * tau * wiggle * u.powi(4) / 5.0;
+            product.push(Complex64::from_polar(v * envelope, -TAU * tau * f + chirp * first + bend));
             rotation.push(Complex64::from_polar(1.0, chirp * step));
         }
         let df = self.fs / n as f64;
@@ -138,8 +164,10 @@ impl WhistleSearch {
 /// the loudest tile's) and the loudest tile's, every span and half-width
 /// of a dense grid with its vertex frequency tuned from 8 % beyond the
 /// tile's frequency to a span past it (on the side the span puts the
-/// vertex); the same from [`Seed::upper`] when there is one. The `keep`
-/// best matches as `(dt, [f_turn, span, half])`.
+/// vertex); the same from [`Seed::upper`] when there is one. Around the
+/// best few: nearby vertex times and spans, then W and M shapes
+/// ([`WIGGLES`]), then a fine grid of spans and wiggles. The `keep` best
+/// matches, each once, as `(dt, [f_turn, span, half, wiggle])`.
 pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -> Vec<Start> {
     let mut search = WhistleSearch::new(d.len(), fs);
     // From the loudest tile, and from the loudest pixel a whistle could be when the tile is lower.
@@ -153,38 +181,101 @@ pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) ->
             for half in HALVES {
                 let first = *SPANS.start() as f64 * SPAN_STEP;
                 let count = SPANS.count();
-                for (i, (f_turn, snr)) in search.scan_spans(d, (dt, f, half), (first, SPAN_STEP, count), reach).into_iter().enumerate() {
-                    found.push((snr, (dt, vec![f_turn, first + i as f64 * SPAN_STEP, half])));
+                for (i, (f_turn, snr)) in search.scan_spans(d, (dt, f, half, 0.0), (first, SPAN_STEP, count), reach).into_iter().enumerate()
+                {
+                    found.push((snr, (dt, vec![f_turn, first + i as f64 * SPAN_STEP, half, 0.0])));
                 }
             }
         }
     }
-    found.sort_by(|a, b| b.0.total_cmp(&a.0));
     // Around the best few shapes: the vertex time a few ms either way (a
     // sweep's arms slip by radians when it is off) and spans between the
     // grid's, the vertex frequency tuned near the one found.
+    for (dt, x) in distinct_best(&mut found, SHAPES_RETIMED) {
+        let (f_turn, span, half) = (x[0], x[1], x[2]);
+        let margin = 0.02 * f_turn;
+        for shift in RETIME {
+            let first = span - SPAN_STEP;
+            let scanned = search.scan_spans(d, (dt + shift, f_turn, half, 0.0), (first, SPAN_STEP / 2.0, 5), |_| (margin, margin));
+            for (i, (f, snr)) in scanned.into_iter().enumerate() {
+                found.push((snr, (dt + shift, vec![f, first + i as f64 * SPAN_STEP / 2.0, half, 0.0])));
+            }
+        }
+    }
+    // A W or an M is matched best, among V's, by a shorter one, or one
+    // with another span and vertex frequency (below): when the best V
+    // matches well enough for a whistle, at its time, width and the next
+    // two wider, each wiggle of [`WIGGLES`] with every span of the grid,
+    // the vertex tuned around the V's.
+    let whistle_like = best_match(&found) >= WIGGLE_GATE;
+    if whistle_like {
+        for (dt, x) in distinct_best(&mut found, SHAPES_WIGGLED) {
+            let f_v = x[0];
+            for half in HALVES.into_iter().filter(|h| *h >= x[2]).take(3) {
+                for wiggle in WIGGLES {
+                    let margin = 0.03 * f_v + 0.2 * wiggle.abs();
+                    let first = *SPANS.start() as f64 * SPAN_STEP;
+                    let scanned = search.scan_spans(d, (dt, f_v, half, wiggle), (first, SPAN_STEP, SPANS.count()), |_| (margin, margin));
+                    for (i, (f, snr)) in scanned.into_iter().enumerate() {
+                        found.push((snr, (dt, vec![f, first + i as f64 * SPAN_STEP, half, wiggle])));
+                    }
+                }
+            }
+        }
+    }
+    // The best two shapes' match lobes are a few hertz wide in span and
+    // wiggle, ten times narrower than the grids' steps above, and L-BFGS
+    // stays in the lobe it starts in: a fine grid around each, along the
+    // ridge of spans and wiggles that match alike.
+    if whistle_like {
+        for (dt, x) in distinct_best(&mut found, SHAPES_WIGGLED) {
+            let (f_turn, span, half, wiggle) = (x[0], x[1], x[2], x[3]);
+            let margin = 0.01 * f_turn;
+            for k in -FINE_STEPS..=FINE_STEPS {
+                let w = wiggle + k as f64 * FINE_WIGGLE_STEP;
+                let first = span - SPAN_PER_WIGGLE * (w - wiggle) - FINE_STEPS as f64 * FINE_SPAN_STEP;
+                let count = 2 * FINE_STEPS as usize + 1;
+                let scanned = search.scan_spans(d, (dt, f_turn, half, w), (first, FINE_SPAN_STEP, count), |_| (margin, margin));
+                for (i, (f, snr)) in scanned.into_iter().enumerate() {
+                    found.push((snr, (dt, vec![f, first + i as f64 * FINE_SPAN_STEP, half, w])));
+                }
+            }
+        }
+    }
+    // The retimed scans repeat the grid's shapes at its own times: once each.
+    found.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut starts: Vec<Start> = Vec::with_capacity(keep);
+    for (_, (dt, x)) in found {
+        let repeat = |(t, y): &Start| *t == dt && y[1..] == x[1..] && (y[0] - x[0]).abs() < 0.5;
+        if starts.len() == keep {
+            break;
+        }
+        if !starts.iter().any(repeat) {
+            starts.push((dt, x));
+        }
+    }
+    starts
+}
+
+/// The best match in `found` (−∞ when empty).
+fn best_match(found: &[(f64, Start)]) -> f64 {
+    found.iter().map(|f| f.0).fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// Sorts `found` best first and returns its `count` best shapes that
+/// differ in vertex time (by 10 ms), vertex frequency (20 Hz) or width.
+fn distinct_best(found: &mut [(f64, Start)], count: usize) -> Vec<Start> {
+    found.sort_by(|a, b| b.0.total_cmp(&a.0));
     let mut best: Vec<Start> = Vec::new();
-    for (_, (dt, x)) in &found {
-        if best.len() == SHAPES_RETIMED {
+    for (_, (dt, x)) in found.iter() {
+        if best.len() == count {
             break;
         }
         if best.iter().all(|(t, y)| (t - dt).abs() > 0.01 || (y[0] - x[0]).abs() > 20.0 || y[2] != x[2]) {
             best.push((*dt, x.clone()));
         }
     }
-    for (dt, x) in best {
-        let (f_turn, span, half) = (x[0], x[1], x[2]);
-        let margin = 0.02 * f_turn;
-        for shift in RETIME {
-            let first = span - SPAN_STEP;
-            let scanned = search.scan_spans(d, (dt + shift, f_turn, half), (first, SPAN_STEP / 2.0, 5), |_| (margin, margin));
-            for (i, (f, snr)) in scanned.into_iter().enumerate() {
-                found.push((snr, (dt + shift, vec![f, first + i as f64 * SPAN_STEP / 2.0, half])));
-            }
-        }
-    }
-    found.sort_by(|a, b| b.0.total_cmp(&a.0));
-    found.into_iter().take(keep).map(|(_, start)| start).collect()
+    best
 }
 
 /// The scratchy scene's carrier bounds (Hz).
@@ -357,14 +448,32 @@ mod tests {
     use super::*;
 
     /// A unit-amplitude whistle (std::glitch's formula) at `t0` s.
-    fn whistle(n: usize, fs: f64, t0: f64, f: f64, span: f64, half: f64) -> Vec<f64> {
+    fn whistle(n: usize, fs: f64, t0: f64, (f, span, half, wiggle): (f64, f64, f64, f64)) -> Vec<f64> {
         (0..n)
             .map(|k| {
                 let tau = k as f64 / fs - t0;
                 let u = tau / half;
-                (-u * u).exp() * (TAU * tau * (f + span * u * u / 3.0) + 0.7).cos()
+                (-u * u).exp() * (TAU * tau * (f + span * u * u / 3.0 + wiggle * u.powi(4) / 5.0) + 0.7).cos()
             })
             .collect()
+    }
+
+    #[test]
+    fn a_w_shaped_whistle_is_found_with_its_wiggle() {
+        // A W (f = 800 − 300u² + 300u⁴ Hz: down to 725 Hz at u² = ½ and up
+        // to 1700 Hz) at SNR 15 in unit white noise, the loudest tile on
+        // its dips. The best V's are short ones of the vertex alone; the
+        // best start must be a W (span, wiggle and width trade off along a
+        // ridge the fit then climbs), its vertex within 10 Hz.
+        let (n, fs) = (8192, 4096.0);
+        let truth = (800.0, -300.0, 0.18, 300.0);
+        let d = at_snr_in_white_noise(&whistle(n, fs, 1.0 + 0.01, truth), 15.0, 7);
+        let seed = Seed { dt: 0.03, frequency: 730.0, q: 20.0, track: None, arches: None, vertex: Some(0.01), high: None, upper: None };
+        let starts = whistle_starts_from_data(&d, fs, &seed, 3);
+        let (dt, x) = &starts[0];
+        assert!((dt - 0.01).abs() < 0.003, "vertex time {dt} s: {starts:?}");
+        assert!((x[0] - truth.0).abs() < 10.0, "vertex {} Hz: {starts:?}", x[0]);
+        assert!(x[1] < -150.0 && (150.0..=600.0).contains(&x[3]), "span {} Hz, wiggle {} Hz: {starts:?}", x[1], x[3]);
     }
 
     #[test]
@@ -372,7 +481,7 @@ mod tests {
         // SNR 12 in unit white noise; the search starts 15 Hz below the
         // truth, three lobe-widths away, and must land within 0.5 Hz.
         let (n, fs) = (8192, 4096.0);
-        let h = whistle(n, fs, 1.0 + 0.01, 589.1, 463.0, 0.16);
+        let h = whistle(n, fs, 1.0 + 0.01, (589.1, 463.0, 0.16, 0.0));
         let d = at_snr_in_white_noise(&h, 12.0, 3);
         let mut search = WhistleSearch::new(n, fs);
         let (f, snr) = search.tune(&d, (0.01, 574.0, 463.0, 0.16), 40.0);
@@ -382,7 +491,7 @@ mod tests {
         let (_, off) = search.tune(&d, (0.01, 574.0, 263.0, 0.16), 40.0);
         assert!(off < 0.6 * snr, "match {off} at the wrong span");
         // Spans scanned by rotation match spans tuned one by one.
-        let scanned = search.scan_spans(&d, (0.01, 574.0, 0.16), (263.0, 50.0, 5), |_| (40.0, 40.0));
+        let scanned = search.scan_spans(&d, (0.01, 574.0, 0.16, 0.0), (263.0, 50.0, 5), |_| (40.0, 40.0));
         for (i, (f_i, snr_i)) in scanned.iter().enumerate() {
             let (f_1, snr_1) = search.tune(&d, (0.01, 574.0, 263.0 + 50.0 * i as f64, 0.16), 40.0);
             assert!((f_i - f_1).abs() < 1e-6 && (snr_i - snr_1).abs() < 1e-9 * snr_1, "span {i}: {f_i} {snr_i} against {f_1} {snr_1}");

@@ -215,3 +215,24 @@ fn fits_adam_takes_the_steps_of_the_trainers_adam() {
         assert_eq!(&x, fit_x, "step {step}");
     }
 }
+
+#[test]
+fn a_diagonal_start_fits_params_of_very_different_stiffness() {
+    // A loss on a large floor (as a 2 s window's ½Σd² ≈ 4000) whose params
+    // are known to parts in 1e5 and 1e1 of their ranges: along the
+    // gradient only the stiff one moves, and `rel_tol` stops plain L-BFGS
+    // with the loose one far off. Each param's curvature as the first
+    // inverse Hessian's diagonal fits both.
+    let loss = |x: &[f64]| -> Result<(f64, Vec<f64>), ()> {
+        let (a, b) = (1e9, 1.0);
+        let (dx, dy) = (x[0] - 0.3001, x[1] - 2.0);
+        Ok((4000.0 + 0.5 * (a * dx * dx + b * dy * dy + 1e3 * dx * dy), vec![a * dx + 5e2 * dy, b * dy + 5e2 * dx]))
+    };
+    let bounds = [Some((0.0, 1.0)), Some((-5.0, 5.0))];
+    let plain = Settings { max_steps: 100, rel_tol: 1e-8, ..Settings::new(Algorithm::Lbfgs) };
+    let diagonal = Settings { diagonal: true, ..plain.clone() };
+    let p = minimize(loss, &[0.3, 0.0], &bounds, &plain, |_| {}).unwrap();
+    let d = minimize(loss, &[0.3, 0.0], &bounds, &diagonal, |_| {}).unwrap();
+    assert!((d.x[1] - 2.0).abs() < 1e-2 && (d.x[0] - 0.3001).abs() < 1e-6, "diagonal: {d:?}");
+    assert!((p.x[1] - 2.0).abs() > 0.1, "plain L-BFGS fitted it too ({p:?}): the test shows nothing");
+}
