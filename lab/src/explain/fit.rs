@@ -288,3 +288,43 @@ fn rank_starts(
     ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
     Ok(ranked)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::explain::EXPLAIN_SOURCE;
+    use gwml_compiler::Options;
+    use gwml_runtime::Model;
+
+    #[test]
+    fn at_a_noiseless_fit_the_model_fisher_is_the_loss_hessian() {
+        // With the data the model itself, the residual is zero at the
+        // truth, so the loss's Hessian is exactly JᵀJ: the two estimates
+        // must agree to the finite differences' accuracy.
+        let knobs = [("window", "0.5 s")].map(|(k, v)| (k.to_string(), v.to_string()));
+        let options = Options { knobs: knobs.into_iter().collect(), ..Options::default() };
+        let scene = Model::from_source("explain.gw", EXPLAIN_SOURCE).unwrap().scene_with(Some("blip"), options).unwrap();
+        let free = free_params(&scene);
+        let truth = [0.01, 20.0, 0.7, 180.0, 6.0, 1.4, 0.1];
+        let mut run = scene.bind();
+        run.input_real("d", &vec![0.0; 2048]).unwrap();
+        run.input_real("psd", &vec![1.0; 1025]).unwrap();
+        set(&mut run, &free, &truth).unwrap();
+        let Value::RealArray(model) = run.forward().unwrap().value("model").unwrap().clone() else { panic!("model is not real") };
+        run.input_real("d", &model).unwrap();
+        let fit = fit_run(&mut run, Some("loss"), &Settings::new(Algorithm::Lbfgs), |_| {}).unwrap();
+        let x = fit.minimum.x.clone();
+        assert!(x.iter().zip(&truth).all(|(a, b)| (a - b).abs() < 1e-6 * b.abs().max(1.0)), "the fit left the truth: {x:?}");
+        let prior: Vec<Option<(f64, f64)>> = free.iter().map(|p| p.2.or(Some((-PI, PI)))).collect();
+        let mut evaluations = 0;
+        let jtj = model_fisher(&mut run, &free, &x, &prior, &mut evaluations).unwrap();
+        assert_eq!(evaluations, 2 * free.len());
+        let h = &fit.fisher;
+        for (i, row) in jtj.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                let scale = (h[i][i] * h[j][j]).sqrt();
+                assert!((v - h[i][j]).abs() < 1e-3 * scale, "({i}, {j}): JᵀJ {v} against the Hessian {} (scale {scale})", h[i][j]);
+            }
+        }
+    }
+}

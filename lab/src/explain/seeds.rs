@@ -5,15 +5,9 @@
 //! it. The seeds read those params from the data instead:
 //! - the loudest Q tile within 0.25 s of the window's centre gives a time,
 //!   a frequency and a Q;
-//! - the ridge of the loudest Q plane (the brightest row in each column)
-//!   fitted by a parabola `f(t) = f_turn + span ((t − t0) / half)²` gives a
-//!   V-shaped track (inverted when it bends down): its vertex and curvature
-//!   `span / half²`, and a guess
-//!   of `half` from the fall of the ridge's energy, `∝ exp(−2 (t − t0)² /
-//!   half²)` under a whistle's Gaussian envelope;
 //! - the phase symmetry of the band around the tile's frequency gives a
 //!   whistle's vertex time to a sample or two ([`Seed::vertex`]), which
-//!   the tile (10–200 ms off) and the ridge cannot: a V whose vertex is
+//!   the tile (10–200 ms off) cannot: a V whose vertex is
 //!   5 ms off is radians out of phase along its arms;
 //! - the energy envelope of the data band-passed around the tile's
 //!   frequency (the analytic signal's `|z|²`, by FFT) gives an arch rate
@@ -37,8 +31,6 @@ pub struct Seed {
     pub frequency: f64,
     /// Its plane's Q.
     pub q: f64,
-    /// A V-shaped ridge (or an inverted V), if the data show one.
-    pub track: Option<Track>,
     /// A periodic energy envelope around the tile's frequency, if any.
     pub arches: Option<Arches>,
     /// The time (s from the window's centre) about which the data around
@@ -73,22 +65,6 @@ pub struct Upper {
 /// Where a Koi Fish's blip is looked for when the loudest tile is lower (Hz).
 pub const HIGH_BAND: f64 = 60.0;
 
-/// A V-shaped time-frequency ridge (a whistle's): `f(t) = f_turn +
-/// curvature (t − t0)²`, so a whistle of half-width `half` has span
-/// `curvature half²` (an inverted V when the curvature is negative).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Track {
-    /// Its vertex's time `t0` from the window's centre (s).
-    pub dt: f64,
-    /// Frequency at the vertex (Hz).
-    pub f_turn: f64,
-    /// Hz per s².
-    pub curvature: f64,
-    /// The envelope's 1/e half-width (s), when the ridge's energy falls
-    /// off as a Gaussian's.
-    pub half: Option<f64>,
-}
-
 /// A train of arches (a scratchy glitch's).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Arches {
@@ -104,9 +80,6 @@ pub struct Arches {
     pub duration: f64,
 }
 
-/// Normalised tile energy a ridge point needs (noise has mean 1).
-const RIDGE_ENERGY: f64 = 8.0;
-
 /// The seed of a window's fits over `band`.
 pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed, String> {
     let tiling = QOptions { f_range: band, ..QOptions::default() };
@@ -121,23 +94,7 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
         })
         .map_err(|e| e.to_string())?;
     let nf = image.frequencies.len();
-    let ridge: Vec<(f64, f64, f64)> = image
-        .times
-        .iter()
-        .enumerate()
-        .filter_map(|(i, t)| {
-            let column = &image.values[i * nf..(i + 1) * nf];
-            let (k, e) = column.iter().enumerate().fold((0, f64::NEG_INFINITY), |b, (k, e)| if *e > b.1 { (k, *e) } else { b });
-            (e >= RIDGE_ENERGY).then(|| (t - win.gps_centre, image.frequencies[k], e))
-        })
-        .collect();
     let (frequency, dt) = (image.peak.frequency, image.peak.time - win.gps_centre);
-    // The ridge near the loudest tile: within 0.4 s of it, from a third of
-    // its frequency to 3 times it (a whistle's arms leave its loudest part,
-    // the vertex, where it sweeps slowest: upward for a V, down for an
-    // inverted V).
-    let near: Vec<(f64, f64, f64)> =
-        ridge.into_iter().filter(|(t, f, _)| (t - dt).abs() <= 0.4 && *f >= frequency / 3.0 && *f <= 3.0 * frequency).collect();
     // The loudest pixel at or above `band` Hz within 0.25 s of the centre: `(dt, f)`.
     let loudest_above = |band: f64| {
         let search = |t: f64| (t - win.gps_centre).abs() <= 0.25;
@@ -158,51 +115,11 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
         dt,
         frequency,
         q: image.q,
-        track: track(&near),
         arches: arches(&win.d, sample_rate, frequency),
         vertex: vertex(&win.d, sample_rate, frequency),
         high,
         upper,
     })
-}
-
-/// Weighted least squares of `y = c0 + c1 t + c2 t²`.
-fn parabola(points: &[(f64, f64, f64)]) -> Option<[f64; 3]> {
-    let mut a = nalgebra::Matrix3::<f64>::zeros();
-    let mut b = nalgebra::Vector3::<f64>::zeros();
-    for &(t, y, w) in points {
-        let v = nalgebra::Vector3::new(1.0, t, t * t);
-        a += w * v * v.transpose();
-        b += w * y * v;
-    }
-    let c = a.lu().solve(&b)?;
-    c.iter().all(|v| v.is_finite()).then(|| [c[0], c[1], c[2]])
-}
-
-/// A V-shaped track through ridge points `(t, f, energy)`, if they bend
-/// (upward, or downward for an inverted V); points more than 3 median
-/// deviations off a first fit are dropped.
-fn track(ridge: &[(f64, f64, f64)]) -> Option<Track> {
-    if ridge.len() < 6 {
-        return None;
-    }
-    let [a, b, c] = parabola(ridge)?;
-    let off = |p: &(f64, f64, f64)| (p.1 - a - b * p.0 - c * p.0 * p.0).abs();
-    let mut deviations: Vec<f64> = ridge.iter().map(off).collect();
-    deviations.sort_by(f64::total_cmp);
-    let limit = 3.0 * deviations[deviations.len() / 2];
-    let ridge: Vec<(f64, f64, f64)> = ridge.iter().filter(|p| off(p) <= limit).copied().collect();
-    if ridge.len() < 6 {
-        return None;
-    }
-    let [a, b, c] = parabola(&ridge)?;
-    if c == 0.0 {
-        return None;
-    }
-    let log_energy: Vec<(f64, f64, f64)> = ridge.iter().map(|&(t, _, e)| (t, e.ln(), 1.0)).collect();
-    let half = parabola(&log_energy).filter(|p| p[2] < 0.0).map(|p| (-2.0 / p[2]).sqrt());
-    let dt = -b / (2.0 * c);
-    Some(Track { dt, f_turn: a - b * b / (4.0 * c), curvature: c, half }).filter(|t| t.f_turn > 0.0 && t.dt.abs() < 0.5)
 }
 
 /// The analytic signal of `x` band-passed to `lo..hi` Hz, and the
