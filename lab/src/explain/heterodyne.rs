@@ -245,8 +245,7 @@ pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) ->
     // matches well enough for a whistle, at its time, width and the next
     // two wider, each wiggle of [`WIGGLES`] with every span of the grid,
     // the vertex tuned around the V's.
-    let whistle_like = best_match(&found) >= WIGGLE_GATE;
-    if whistle_like {
+    if best_match(&found) >= WIGGLE_GATE {
         for (dt, x) in distinct_best(&mut found, SHAPES_WIGGLED) {
             let f_v = x[0];
             for half in HALVES.into_iter().filter(|h| *h >= x[2]).take(3) {
@@ -260,12 +259,10 @@ pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) ->
                 }
             }
         }
-    }
-    // The best two shapes' match lobes are a few hertz wide in span and
-    // wiggle, ten times narrower than the grids' steps above, and L-BFGS
-    // stays in the lobe it starts in: a fine grid around each, along the
-    // ridge of spans and wiggles that match alike.
-    if whistle_like {
+        // The best two shapes' match lobes are a few hertz wide in span and
+        // wiggle, ten times narrower than the grids' steps above, and L-BFGS
+        // stays in the lobe it starts in: a fine grid around each, along the
+        // ridge of spans and wiggles that match alike.
         for (dt, x) in distinct_best(&mut found, SHAPES_WIGGLED) {
             let (f_turn, span, half, wiggle) = (x[0], x[1], x[2], x[3]);
             let margin = 0.01 * f_turn;
