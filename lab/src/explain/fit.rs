@@ -88,18 +88,17 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
     // 0.85 s; at 1e-7 fewer Blip fits had a σ (22 of 27 against 26) and,
     // without the polish, scratchy durations were twice as far off.
     let settings = Settings { max_steps: 100, rel_tol: 1e-8, diagonal: family.scaled_steps, ..Settings::new(Algorithm::Lbfgs) };
-    let refine_to = |run: &mut Run, x0: &[f64], settings: &Settings, evaluations: &mut usize| {
+    let refine = |run: &mut Run, x0: &[f64], evaluations: &mut usize| {
         let eval = |x: &[f64]| -> Result<(f64, Vec<f64>), Error> {
             set(run, &free, x)?;
             let out = run.value_and_grad()?;
             let grad = free.iter().map(|p| out.grad("loss", &p.0).unwrap_or(0.0)).collect();
             Ok((out.scalar("loss")?, grad))
         };
-        let m = minimize(eval, x0, &bounds, settings, |_| {})?;
+        let m = minimize(eval, x0, &bounds, &settings, |_| {})?;
         *evaluations += m.evaluations;
         Ok::<_, Error>(m)
     };
-    let refine = |run: &mut Run, x0: &[f64], evaluations: &mut usize| refine_to(run, x0, &settings, evaluations);
     let better = |best: Minimum, m: Minimum| if m.loss < best.loss { m } else { best };
     // The fit's mode, and the best-fitting other mode known (from the neighbours).
     let (mut best, rival) = match begin {
