@@ -4,7 +4,8 @@
 # generator to 70 % of the rows and measure their draws against the other
 # 30 % (gwml generator fit --holdout 0.3), at each seed of SEEDS (the
 # training's and the test's). Writes the log to OUT/log.txt.
-# Usage: [SEEDS="11 12 13"] scripts/generator_realism.sh SETS_DIR OUT_DIR [GWML]
+# Usage: [SEEDS="11 12 13"] [SETS_LIST="ringdown ..."] [KINDS="learned parametric"]
+#        scripts/generator_realism.sh SETS_DIR OUT_DIR [GWML]
 set -euo pipefail
 sets=$1
 out=$2
@@ -13,7 +14,7 @@ mkdir -p "$out"
 : > "$out/log.txt"
 for seed in ${SEEDS:-11 12 13}; do
     for set in ${SETS_LIST:-ringdown asymmetric chirplet realfit}; do
-        for kind in learned parametric; do
+        for kind in ${KINDS:-learned parametric}; do
             echo "== $set, $kind, seed $seed" | tee -a "$out/log.txt"
             "$gwml" generator fit --family blip --kind "$kind" --examples "$sets/$set.npz" --holdout 0.3 \
                 --epochs 150 --seed "$seed" --out "$out/$set-$kind-$seed.json" 2>&1 | grep -E "^(trained|fitted|realism)" | tee -a "$out/log.txt"

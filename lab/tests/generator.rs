@@ -80,12 +80,13 @@ fn the_two_sample_test_tells_shapes_apart_and_not_one_set_from_itself() {
 }
 
 /// The learned generator on ringdowns, a shape no `std::glitch` formula
-/// has. What it reaches today (150 epochs on 350 examples at SNR 15–30):
-/// its training loss explains about half of the examples' signal energy,
-/// and the critic tells its draws from held-out ringdowns less well than it
-/// tells blips from them at SNR 20 (0.83 against 0.94), barely at SNR 40
-/// (0.92 against 0.95). Issue #30's target is 0.60 at SNR 40; this test holds
-/// the ground gained, not the target.
+/// has (150 epochs on 350 examples at SNR 15–30). With the spectrum decoder
+/// its training loss explains 91 % of the examples' signal energy (the
+/// time-domain decoder before it: about half), and at SNR 20 the critic
+/// tells its draws from held-out ringdowns at 0.71 (before: 0.83) where it
+/// tells blips from them at 0.94. Issue #30's target is 0.60 at SNR 40 with
+/// the CLI's critic (`results/generator/realism/`); this test holds the
+/// ground gained.
 #[test]
 fn the_learned_generator_learns_ringdowns() {
     let clean = shapes(0, 500, 5);
@@ -97,11 +98,11 @@ fn the_learned_generator_learns_ringdowns() {
     let noise_only = 0.5 * N as f64;
     let last = reports.last().unwrap().train_loss;
     println!("final loss {last:.1}; silence {silent:.1}; noise alone {noise_only:.1}");
-    assert!(last < silent - 0.4 * (silent - noise_only), "the decoder explains signal energy: loss {last}, silence {silent}");
+    assert!(last < silent - 0.75 * (silent - noise_only), "the decoder explains signal energy: loss {last}, silence {silent}");
     let draws = g.sample(150, 2).unwrap().rows;
     let blips = shapes(1, 150, 7);
     let learned = two_sample_accuracy(&draws, held_out, &options(20.0)).unwrap();
     let wrong_shape = two_sample_accuracy(&blips, held_out, &options(20.0)).unwrap();
     println!("SNR 20: learned draws against held-out ringdowns {learned:.3}; blips against them {wrong_shape:.3}");
-    assert!(learned < wrong_shape - 0.03, "draws {learned} vs blips {wrong_shape}");
+    assert!(learned < 0.78 && learned < wrong_shape - 0.1, "draws {learned} vs blips {wrong_shape}");
 }
