@@ -248,10 +248,15 @@ fn bad_generator_inputs_are_clear_errors() {
     std::fs::write(p("bad.json"), "{\"family\": \"blip\"}").unwrap();
     let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("bad.json"), "--out", &p("d.npz")]);
     assert!(!ok && err.contains("not a gwml generator file"), "{err}");
-    std::fs::write(p("learned.json"), "{\"kind\": \"learned\", \"class\": 1, \"centres\": [0.5], \"weights\": \"gone.safetensors\"}")
-        .unwrap();
+    let learned = |band: &str| {
+        format!("{{\"kind\": \"learned\", \"class\": 1, \"centres\": [0.5], \"band_hz\": {band}, \"weights\": \"gone.safetensors\"}}")
+    };
+    std::fs::write(p("learned.json"), learned("[20, 2000]")).unwrap();
     let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("learned.json"), "--out", &p("d.npz")]);
     assert!(!ok && err.contains("gone.safetensors"), "a missing weights file is named: {err}");
+    std::fs::write(p("learned.json"), learned("[500, 100]")).unwrap();
+    let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("learned.json"), "--out", &p("d.npz")]);
+    assert!(!ok && err.contains("`band_hz` must be two frequencies within 20–2000 Hz"), "a reversed band is refused: {err}");
     let (ok, _, err) = gwml(&["data", "glitch", "--generator", &p("missing.json"), "--out", &p("g.npz")]);
     assert!(!ok && err.contains("cannot read") && err.contains("missing.json"), "{err}");
     let (ok, _, err) = gwml(&["data", "bursts", "--class", "blip", "--out", &p("b.npz")]);

@@ -80,13 +80,14 @@ fn the_two_sample_test_tells_shapes_apart_and_not_one_set_from_itself() {
 }
 
 /// The learned generator on ringdowns, a shape no `std::glitch` formula
-/// has (150 epochs on 350 examples at SNR 15–30). With the spectrum decoder
-/// its training loss explains 91 % of the examples' signal energy (the
-/// time-domain decoder before it: about half), and at SNR 20 the critic
-/// tells its draws from held-out ringdowns at 0.71 (before: 0.83) where it
-/// tells blips from them at 0.94. Issue #30's target is 0.60 at SNR 40 with
-/// the CLI's critic (`results/generator/realism/`); this test holds the
-/// ground gained.
+/// has (150 epochs on 350 examples at SNR 15–30). Its training loss
+/// explains 87 % of the examples' signal energy (the time-domain decoder
+/// before it: about half), and at SNR 20 the critic tells its draws from
+/// held-out ringdowns at 0.72 (before: 0.83) where it tells blips from them
+/// at 0.94. Issue #30's target is 0.60 at SNR 40, measured with
+/// `scripts/generator_realism.sh` (`results/generator/realism/`); this
+/// test's draw of the set is harder (0.80 at SNR 40 where the script's
+/// sets give 0.52–0.66) and it holds the ground gained.
 #[test]
 fn the_learned_generator_learns_ringdowns() {
     let clean = shapes(0, 500, 5);
@@ -97,12 +98,14 @@ fn the_learned_generator_learns_ringdowns() {
     let silent = examples.iter().map(|x| 0.5 * x.iter().map(|v| v * v).sum::<f64>()).sum::<f64>() / examples.len() as f64;
     let noise_only = 0.5 * N as f64;
     let last = reports.last().unwrap().train_loss;
-    println!("final loss {last:.1}; silence {silent:.1}; noise alone {noise_only:.1}");
+    println!("final loss {last:.1}; silence {silent:.1}; noise alone {noise_only:.1}; band {:?}", g.band);
     assert!(last < silent - 0.75 * (silent - noise_only), "the decoder explains signal energy: loss {last}, silence {silent}");
+    assert!(g.band.1 < 1000.0, "the ringdowns (60–500 Hz) set the band: {:?}", g.band);
     let draws = g.sample(150, 2).unwrap().rows;
     let blips = shapes(1, 150, 7);
     let learned = two_sample_accuracy(&draws, held_out, &options(20.0)).unwrap();
     let wrong_shape = two_sample_accuracy(&blips, held_out, &options(20.0)).unwrap();
-    println!("SNR 20: learned draws against held-out ringdowns {learned:.3}; blips against them {wrong_shape:.3}");
+    let learned_40 = two_sample_accuracy(&draws, held_out, &options(40.0)).unwrap();
+    println!("SNR 20: learned draws against held-out ringdowns {learned:.3}; blips against them {wrong_shape:.3}; SNR 40: learned {learned_40:.3}");
     assert!(learned < 0.78 && learned < wrong_shape - 0.1, "draws {learned} vs blips {wrong_shape}");
 }
