@@ -209,6 +209,7 @@ pub fn fit(
     let mask = passband(band);
     let mut arrays = BTreeMap::new();
     arrays.insert("x".to_string(), Array::new(vec![rows.len(), SAMPLES], rows.concat())?);
+    // The trainer takes a scene's data inputs row by row: the mask, one per row.
     arrays.insert("passband".to_string(), Array::new(vec![rows.len(), mask.len()], mask.repeat(rows.len()))?);
     let data = Dataset { arrays };
     let model = vae_model()?;
