@@ -421,8 +421,9 @@ pub struct DataArgs {
     #[arg(long)]
     pub ideal_noise: bool,
     /// glitch only: draw the shapes of a class from a generator fitted by
-    /// `gwml generator fit` (the file says which class) instead of its
-    /// formula, each scaled to the --snr range; repeat for several classes.
+    /// `gwml generator fit` (the file says which classes it draws) instead
+    /// of its formula, each scaled to the --snr range; repeat for several
+    /// generators (at most one per class).
     #[arg(long, value_name = "GEN.json")]
     pub generator: Vec<PathBuf>,
     /// The .npz file to write.

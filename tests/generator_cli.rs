@@ -1,7 +1,8 @@
 //! `gwml generator fit` and `gwml generator sample` end to end: examples of
 //! one family are written with `gwml data glitch --class`, a generator is
 //! fitted to them and writes its plot, and its draws are written with one
-//! row per glitch at the drawn SNR.
+//! row per glitch at the drawn SNR; a learned generator fitted to several
+//! classes draws the class `--class` names.
 
 #[path = "common/cli.rs"]
 mod cli;
@@ -220,7 +221,7 @@ fn holdout_measures_realism_against_clean_shapes() {
     ]);
     assert!(ok, "{err}");
     assert!(out.contains("trained a Blip generator on 30 examples"), "{out}");
-    let line = out.lines().find(|l| l.starts_with("realism on 10 held-out examples")).unwrap_or_else(|| panic!("{out}"));
+    let line = out.lines().find(|l| l.starts_with("realism on 10 held-out Blip examples")).unwrap_or_else(|| panic!("{out}"));
     let accuracies: Vec<f64> =
         line.split("SNR ").skip(1).map(|s| s.split(": ").nth(1).unwrap().trim().trim_end_matches(';').parse().unwrap()).collect();
     assert_eq!(accuracies.len(), 2, "{line}");
@@ -249,17 +250,94 @@ fn bad_generator_inputs_are_clear_errors() {
     let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("bad.json"), "--out", &p("d.npz")]);
     assert!(!ok && err.contains("not a gwml generator file"), "{err}");
     let learned = |band: &str| {
-        format!("{{\"kind\": \"learned\", \"class\": 1, \"centres\": [0.5], \"band_hz\": {band}, \"weights\": \"gone.safetensors\"}}")
+        let (means, sds) = (serde_json::json!([vec![0.0; 16]]), serde_json::json!([vec![1.0; 16]]));
+        format!(
+            "{{\"kind\": \"learned\", \"classes\": [{{\"class\": 1, \"centres\": [0.5], \"band_hz\": {band}, \"posterior_means\": {means}, \
+             \"posterior_sds\": {sds}}}], \"weights\": \"gone.safetensors\"}}"
+        )
     };
     std::fs::write(p("learned.json"), learned("[20, 2000]")).unwrap();
     let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("learned.json"), "--out", &p("d.npz")]);
     assert!(!ok && err.contains("gone.safetensors"), "a missing weights file is named: {err}");
     std::fs::write(p("learned.json"), learned("[500, 100]")).unwrap();
     let (ok, _, err) = gwml(&["generator", "sample", "--model", &p("learned.json"), "--out", &p("d.npz")]);
-    assert!(!ok && err.contains("`band_hz` must be two frequencies within 20–2000 Hz"), "a reversed band is refused: {err}");
+    assert!(!ok && err.contains("classes[0]: `band_hz` must be two frequencies within 20–2000 Hz"), "a reversed band is refused: {err}");
     let (ok, _, err) = gwml(&["data", "glitch", "--generator", &p("missing.json"), "--out", &p("g.npz")]);
     assert!(!ok && err.contains("cannot read") && err.contains("missing.json"), "{err}");
     let (ok, _, err) = gwml(&["data", "bursts", "--class", "blip", "--out", &p("b.npz")]);
     assert!(!ok && err.contains("--class applies to glitch data only"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// One learned generator fitted to the Blips and Whistles of a file of every
+/// class draws either class by `--class`, both in proportion without it,
+/// and serves `gwml data glitch --generator` for each; what it was not
+/// fitted to, and files it cannot read, are clear errors.
+#[test]
+fn a_conditional_generator_draws_the_class_asked_for() {
+    use gwml::runtime::dataset::{write_npz, Array};
+    let dir = std::env::temp_dir().join(format!("gwml-generator-conditional-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |name: &str| dir.join(name).display().to_string();
+    let (ok, _, err) = gwml(&["data", "glitch", "--n", "160", "--snr", "20..30", "--seed", "5", "--out", &p("all.npz")]);
+    assert!(ok, "{err}");
+    let (all, model) = (p("all.npz"), p("c.json"));
+    let fit = |extra: &[&str]| {
+        let mut args = vec!["generator", "fit", "--examples", &all, "--epochs", "10", "--out", &model];
+        args.extend_from_slice(extra);
+        gwml(&args)
+    };
+    let (ok, out, err) = fit(&["--family", "blip,whistle"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("trained a Blip + Whistle generator"), "{out}");
+    assert!(out.contains("  Blip: ") && out.contains("  Whistle: "), "one line per class: {out}");
+    let labels = |name: &str| Dataset::read(Path::new(&p(name))).unwrap().arrays["label"].data.clone();
+    let sample = |extra: &[&str], out: &str| {
+        let mut args = vec!["generator", "sample", "--model", &model, "--n", "12", "--seed", "3", "--out", out];
+        args.extend_from_slice(extra);
+        gwml(&args)
+    };
+    let (ok, _, err) = sample(&["--class", "whistle"], &p("w.npz"));
+    assert!(ok, "{err}");
+    assert!(labels("w.npz").iter().all(|l| *l == 3.0), "{:?}", labels("w.npz"));
+    let (ok, _, err) = sample(&["--class", "1"], &p("b.npz"));
+    assert!(ok, "{err}");
+    assert!(labels("b.npz").iter().all(|l| *l == 1.0));
+    let (ok, _, err) = sample(&[], &p("both.npz"));
+    assert!(ok, "{err}");
+    assert!(labels("both.npz").iter().all(|l| *l == 1.0 || *l == 3.0));
+    let (ok, _, err) = sample(&["--class", "koi_fish"], &p("k.npz"));
+    assert!(!ok && err.contains("draws Blip, Whistle, not Koi Fish"), "{err}");
+    let (ok, _, err) = sample(&["--class", "17"], &p("k.npz"));
+    assert!(!ok && err.contains("--class") && err.contains("0 to 15"), "{err}");
+    let (ok, out, err) =
+        gwml(&["data", "glitch", "--class", "whistle", "--n", "4", "--seed", "4", "--generator", &p("c.json"), "--out", &p("g.npz")]);
+    assert!(ok && out.contains("4 Whistle"), "{out}{err}");
+    // The parametric generator models one family.
+    let (ok, _, err) = fit(&["--family", "blip,whistle", "--kind", "parametric"]);
+    assert!(!ok && err.contains("models one family"), "{err}");
+    let (ok, _, err) = fit(&["--family", "chirp,tomte"]);
+    assert!(ok, "{err}");
+    // Rows without labels need the one family they are of; labels must be
+    // class numbers.
+    let rows = Array::new(vec![2, 4096], vec![0.0; 2 * 4096]).unwrap();
+    let write = |name: &str, label: Option<Vec<f64>>| {
+        let mut arrays = std::collections::BTreeMap::new();
+        arrays.insert("x".to_string(), rows.clone());
+        if let Some(l) = label {
+            arrays.insert("label".to_string(), Array::new(vec![2], l).unwrap());
+        }
+        write_npz(Path::new(&p(name)), &Dataset { arrays }).unwrap();
+    };
+    write("unlabelled.npz", None);
+    write("fractional.npz", Some(vec![1.0, 2.5]));
+    write("labelled.npz", Some(vec![1.0, 2.0]));
+    let (ok, _, err) = gwml(&["generator", "fit", "--examples", &p("unlabelled.npz"), "--out", &p("u.json")]);
+    assert!(!ok && err.contains("no `label` array") && err.contains("--family"), "{err}");
+    let (ok, _, err) = gwml(&["generator", "fit", "--examples", &p("fractional.npz"), "--out", &p("u.json")]);
+    assert!(!ok && err.contains("fractional.npz: `label` row 1 is 2.5"), "{err}");
+    let (ok, _, err) = gwml(&["generator", "fit", "--family", "tomte", "--examples", &p("labelled.npz"), "--out", &p("u.json")]);
+    assert!(!ok && err.contains("no examples of Tomte"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }

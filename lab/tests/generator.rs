@@ -93,19 +93,49 @@ fn the_learned_generator_learns_ringdowns() {
     let clean = shapes(0, 500, 5);
     let (train, held_out) = clean.split_at(350);
     let examples = noisy(train, (15.0, 30.0), 6);
-    let (g, reports) = fit(&examples, 1, LearnedOptions { epochs: 150, seed: 1, threads: 2 }, |_| {}).unwrap();
+    let (g, reports) = fit(&examples, &vec![1; examples.len()], LearnedOptions { epochs: 150, seed: 1, threads: 2 }, |_| {}).unwrap();
     // The loss of decoding every example as silence: ½‖x‖² plus no KL.
     let silent = examples.iter().map(|x| 0.5 * x.iter().map(|v| v * v).sum::<f64>()).sum::<f64>() / examples.len() as f64;
     let noise_only = 0.5 * N as f64;
     let last = reports.last().unwrap().train_loss;
-    println!("final loss {last:.1}; silence {silent:.1}; noise alone {noise_only:.1}; band {:?}", g.band);
+    let band = g.classes[0].band;
+    println!("final loss {last:.1}; silence {silent:.1}; noise alone {noise_only:.1}; band {band:?}");
     assert!(last < silent - 0.75 * (silent - noise_only), "the decoder explains signal energy: loss {last}, silence {silent}");
-    assert!(g.band.1 < 1000.0, "the ringdowns (60–500 Hz) set the band: {:?}", g.band);
-    let draws = g.sample(150, 2).unwrap().rows;
+    assert!(band.1 < 1000.0, "the ringdowns (60–500 Hz) set the band: {band:?}");
+    let draws = g.sample(150, 2, None).unwrap().rows;
     let blips = shapes(1, 150, 7);
     let learned = two_sample_accuracy(&draws, held_out, &options(20.0)).unwrap();
     let wrong_shape = two_sample_accuracy(&blips, held_out, &options(20.0)).unwrap();
     let learned_40 = two_sample_accuracy(&draws, held_out, &options(40.0)).unwrap();
     println!("SNR 20: learned draws against held-out ringdowns {learned:.3}; blips against them {wrong_shape:.3}; SNR 40: learned {learned_40:.3}");
     assert!(learned < 0.78 && learned < wrong_shape - 0.1, "draws {learned} vs blips {wrong_shape}");
+}
+
+/// One conditional generator fitted to two classes at once, ringdowns
+/// (label 9, a class the library does not have) and sine-Gaussian blips
+/// (label 1), draws each class more like its own held-out examples than
+/// the other class's draws are: the class input steers the decoder.
+#[test]
+fn the_conditional_generator_draws_each_class_like_its_examples() {
+    let (ringdowns, blips) = (shapes(0, 300, 11), shapes(1, 300, 12));
+    let examples: Vec<Vec<f64>> =
+        noisy(&ringdowns[..200], (15.0, 30.0), 13).into_iter().chain(noisy(&blips[..200], (15.0, 30.0), 14)).collect();
+    let labels: Vec<usize> = [9; 200].into_iter().chain([1; 200]).collect();
+    let (g, _) = fit(&examples, &labels, LearnedOptions { epochs: 150, seed: 1, threads: 2 }, |_| {}).unwrap();
+    assert_eq!(g.class_labels(), vec![1, 9]);
+    let drawn_ringdowns = g.sample(100, 3, Some(9)).unwrap();
+    let drawn_blips = g.sample(100, 4, Some(1)).unwrap();
+    assert!(drawn_ringdowns.labels.iter().all(|l| *l == 9) && drawn_blips.labels.iter().all(|l| *l == 1));
+    let o = options(20.0);
+    let critic = |draws: &[Vec<f64>], held_out: &[Vec<f64>]| two_sample_accuracy(draws, held_out, &o).unwrap();
+    let (r_r, b_r) = (critic(&drawn_ringdowns.rows, &ringdowns[200..]), critic(&drawn_blips.rows, &ringdowns[200..]));
+    let (b_b, r_b) = (critic(&drawn_blips.rows, &blips[200..]), critic(&drawn_ringdowns.rows, &blips[200..]));
+    println!("SNR 20, against held-out ringdowns: ringdown draws {r_r:.3}, blip draws {b_r:.3}; against held-out blips: blip draws {b_b:.3}, ringdown draws {r_b:.3}");
+    assert!(r_r < b_r - 0.08, "ringdown draws {r_r} are no more like ringdowns than blip draws {b_r}");
+    assert!(b_b < r_b - 0.08, "blip draws {b_b} are no more like blips than ringdown draws {r_b}");
+    // Without a class, draws come in proportion to the training examples.
+    let mixed = g.sample(200, 5, None).unwrap();
+    let ones = mixed.labels.iter().filter(|l| **l == 1).count();
+    assert!((70..=130).contains(&ones), "{ones} of 200 draws are blips");
+    assert!(g.sample(1, 6, Some(3)).is_err(), "a class it was not fitted to is an error");
 }

@@ -66,9 +66,9 @@ pub struct StrainArgs {
     #[arg(long)]
     pub uncompressed: bool,
     /// Draw the shapes of a class from a generator fitted by `gwml
-    /// generator fit` (the file says which class; its 4096 Hz whitened
-    /// glitches are coloured by the PSD) instead of its formula; repeat for
-    /// several classes.
+    /// generator fit` (the file says which classes it draws; its 4096 Hz
+    /// whitened glitches are coloured by the PSD) instead of its formula;
+    /// repeat for several generators (at most one per class).
     #[arg(long, value_name = "GEN.json")]
     pub generator: Vec<PathBuf>,
     /// Half the Blips and Tomtes take the shape of a real O3 glitch's fit

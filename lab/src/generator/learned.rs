@@ -1,24 +1,26 @@
 //! The learned glitch generator (issue #30, `gwml generator fit --kind
 //! learned`): a variational autoencoder over whitened glitch examples,
-//! written in `lab/models/glitch/vae.gw` and trained by gwml's own
-//! [`Trainer`].
+//! conditioned on their class, written in `lab/models/glitch/vae.gw` and
+//! trained by gwml's own [`Trainer`]. One network models every class it is
+//! fitted to; each class keeps its own band, centre times and latent
+//! posteriors ([`ClassPart`]).
 //!
 //! Fitting: each example is centred on its excess energy ([`energy_centre`],
 //! a circular shift, which keeps white noise white), so the network learns
-//! shapes rather than positions; the family's band is read off the
-//! examples' mean power ([`family_band`]) and the decoder's output is
-//! confined to it; the VAE is trained on the centred rows by
+//! shapes rather than positions; each class's band is read off its
+//! examples' mean power ([`family_band`]) and the decoder's output for the
+//! class is confined to it; the VAE is trained on the centred rows by
 //! Adam, its loss the negative evidence lower bound with the whitened-data
-//! likelihood ½‖x − decoder(z)‖². The generator keeps the decoder's weights,
-//! the band and the examples' centre times.
+//! likelihood ½‖x − decoder(z, class)‖². The generator keeps the decoder's
+//! weights and, per class, the band and the examples' centre times.
 //!
-//! Sampling: z from the encoder's posterior of a random training example
-//! (the aggregate posterior), through the compiled `sample` scene (the decoder
-//! alone), each draw shifted to a centre time drawn from the examples'.
+//! Sampling a class: z from the encoder's posterior of a random training
+//! example of the class (the class's aggregate posterior), through the
+//! compiled `sample` scene (the decoder alone), each draw shifted to a
+//! centre time drawn from the class's examples'.
 
-use super::{quantiles, Draws, GeneratorFitArgs, SAMPLES, SAMPLE_RATE};
+use super::{class_name, quantiles, Draws, GeneratorFitArgs, SAMPLES, SAMPLE_RATE};
 use crate::render;
-use crate::synth::GLITCH_CLASSES;
 use gwml_runtime::checkpoint::{self, Checkpoint, Tensor};
 use gwml_runtime::dataset::{Array, Dataset};
 use gwml_runtime::optim::{Method, OptimConfig, Schedule};
@@ -39,6 +41,10 @@ pub const VAE_SOURCE: &str = include_str!("../../models/glitch/vae.gw");
 /// Dimensions of the latent space (the `latent` grid of `vae.gw`).
 pub const LATENT: usize = 16;
 
+/// Class slots of the VAE's `onehot` input (the `classes` grid of
+/// `vae.gw`): class labels 0–15, the library's and any others.
+pub const CLASS_SLOTS: usize = 16;
+
 /// Samples of the moving average of the squared data that locates a glitch
 /// (15.6 ms at 4096 Hz).
 const SMOOTHING: usize = 64;
@@ -52,13 +58,26 @@ const LEARNING_RATE: f64 = 2e-3;
 /// A fitted learned generator.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LearnedGenerator {
-    /// The glitch class it draws (an index of [`GLITCH_CLASSES`]).
-    pub class: usize,
+    /// The classes it draws, in label order.
+    pub classes: Vec<ClassPart>,
     /// The decoder's weight tensors, by scene input name (`decoder.k1`, ...).
     pub weights: Vec<(String, Vec<f64>)>,
+    /// Training epochs and the last epoch's mean loss.
+    pub epochs: usize,
+    /// Mean negative ELBO per example after the last epoch.
+    pub final_loss: f64,
+}
+
+/// What a learned generator keeps of one class's training examples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClassPart {
+    /// The class label (an index of `GLITCH_CLASSES` for the library's
+    /// classes; any label below [`CLASS_SLOTS`]).
+    pub class: usize,
     /// The examples' centre times in seconds from the start of their row.
     pub centres: Vec<f64>,
-    /// The band (Hz) the decoder's output is confined to: [`family_band`].
+    /// The band (Hz) the decoder's output for the class is confined to:
+    /// [`family_band`] of its examples.
     pub band: (f64, f64),
     /// The encoder's posterior over the latent space for each training
     /// example: its mean and standard deviations ([`LATENT`] each). Draws
@@ -67,10 +86,6 @@ pub struct LearnedGenerator {
     /// Gaussian fitted to the means, leaves holes: Ghosh et al. 2020,
     /// arXiv:1903.12436).
     pub posteriors: Vec<Posterior>,
-    /// Training epochs and the last epoch's mean loss.
-    pub epochs: usize,
-    /// Mean negative ELBO per example after the last epoch.
-    pub final_loss: f64,
 }
 
 /// The encoder's diagonal Gaussian posterior for one example: means and
@@ -175,6 +190,11 @@ fn passband(band: (f64, f64)) -> Vec<f64> {
     (0..=SAMPLES / 2).map(|k| if (band.0..=band.1).contains(&(k as f64 * df)) { 1.0 } else { 0.0 }).collect()
 }
 
+/// The `onehot` input of class `class`.
+fn onehot(class: usize) -> Vec<f64> {
+    (0..CLASS_SLOTS).map(|k| if k == class { 1.0 } else { 0.0 }).collect()
+}
+
 /// `x` shifted circularly by `by` samples (positive: later).
 pub fn roll(x: &[f64], by: i64) -> Vec<f64> {
     let n = x.len() as i64;
@@ -193,24 +213,39 @@ pub fn vae_model() -> Result<Model, Error> {
     Model::from_source("lab/models/glitch/vae.gw", VAE_SOURCE)
 }
 
-/// Trains the VAE on `examples` (rows of 4096 whitened samples) of glitch
-/// class `class`; `on_epoch` sees each epoch's report.
+/// Trains the VAE on `examples` (rows of 4096 whitened samples), example
+/// `i` of class `labels[i]`; `on_epoch` sees each epoch's report.
 pub fn fit(
     examples: &[Vec<f64>],
-    class: usize,
+    labels: &[usize],
     o: LearnedOptions,
     on_epoch: impl FnMut(&EpochReport),
 ) -> Result<(LearnedGenerator, Vec<EpochReport>), Error> {
     if examples.len() < 2 {
         return Err(Error::Bind(format!("{} examples are too few to train a generator", examples.len())));
     }
+    if labels.len() != examples.len() {
+        return Err(Error::Bind(format!("{} labels for {} examples", labels.len(), examples.len())));
+    }
+    if let Some(bad) = labels.iter().find(|l| **l >= CLASS_SLOTS) {
+        return Err(Error::Bind(format!("class label {bad}: the generator models class labels 0–{}", CLASS_SLOTS - 1)));
+    }
     let (rows, centres): (Vec<Vec<f64>>, Vec<f64>) = examples.iter().map(|x| centred(x)).unzip();
-    let band = family_band(&rows);
-    let mask = passband(band);
+    let mut classes: Vec<usize> = labels.to_vec();
+    classes.sort_unstable();
+    classes.dedup();
+    let of_class = |c: usize| (0..rows.len()).filter(move |&i| labels[i] == c);
+    let bands: Vec<(f64, f64)> = classes.iter().map(|&c| family_band(&of_class(c).map(|i| rows[i].clone()).collect::<Vec<_>>())).collect();
+    let masks: Vec<Vec<f64>> = bands.iter().map(|b| passband(*b)).collect();
+    let slot = |i: usize| classes.binary_search(&labels[i]).expect("a class of the examples");
+    // The trainer takes a scene's data inputs row by row: each row's class
+    // and its class's band.
+    let row_masks: Vec<&[f64]> = (0..rows.len()).map(|i| masks[slot(i)].as_slice()).collect();
+    let row_onehots: Vec<Vec<f64>> = labels.iter().map(|&c| onehot(c)).collect();
     let mut arrays = BTreeMap::new();
     arrays.insert("x".to_string(), Array::new(vec![rows.len(), SAMPLES], rows.concat())?);
-    // The trainer takes a scene's data inputs row by row: the mask, one per row.
-    arrays.insert("passband".to_string(), Array::new(vec![rows.len(), mask.len()], mask.repeat(rows.len()))?);
+    arrays.insert("passband".to_string(), Array::new(vec![rows.len(), SAMPLES / 2 + 1], row_masks.concat())?);
+    arrays.insert("onehot".to_string(), Array::new(vec![rows.len(), CLASS_SLOTS], row_onehots.concat())?);
     let data = Dataset { arrays };
     let model = vae_model()?;
     let scene = model.scene(Some("train"))?;
@@ -235,17 +270,29 @@ pub fn fit(
     let mut trainer = Trainer::new(&scene, options)?;
     let reports = trainer.fit(&data, None, |_, _| {}, on_epoch)?;
     let all = trainer.weights();
-    let posteriors = latent_posteriors(&scene, &all, &rows, &mask)?;
+    let mut parts = Vec::with_capacity(classes.len());
+    for (k, &class) in classes.iter().enumerate() {
+        let members: Vec<usize> = of_class(class).collect();
+        let class_rows: Vec<&[f64]> = members.iter().map(|&i| rows[i].as_slice()).collect();
+        parts.push(ClassPart {
+            class,
+            centres: members.iter().map(|&i| centres[i]).collect(),
+            band: bands[k],
+            posteriors: latent_posteriors(&scene, &all, &class_rows, class, &masks[k])?,
+        });
+    }
     let weights = all.into_iter().filter(|(name, _)| name.starts_with("decoder.")).collect();
     let final_loss = reports.last().map_or(f64::NAN, |r| r.train_loss);
-    Ok((LearnedGenerator { class, weights, centres, band, posteriors, epochs: o.epochs, final_loss }, reports))
+    Ok((LearnedGenerator { classes: parts, weights, epochs: o.epochs, final_loss }, reports))
 }
 
-/// The encoder's posterior (means, standard deviations) for each of `rows`.
+/// The encoder's posterior (means, standard deviations) for each of `rows`,
+/// examples of class `class` (band-passed to `passband`).
 fn latent_posteriors(
     scene: &gwml_runtime::Scene,
     weights: &[(String, Vec<f64>)],
-    rows: &[Vec<f64>],
+    rows: &[&[f64]],
+    class: usize,
     passband: &[f64],
 ) -> Result<Vec<Posterior>, Error> {
     let mut run = scene.bind();
@@ -253,6 +300,7 @@ fn latent_posteriors(
         run.input_real(name, w)?;
     }
     run.input_real("passband", passband)?;
+    run.input_real("onehot", &onehot(class))?;
     let mut out = Vec::with_capacity(rows.len());
     for x in rows {
         run.input_real("x", x)?;
@@ -266,19 +314,41 @@ fn latent_posteriors(
 }
 
 impl LearnedGenerator {
-    /// Draws `n` glitches: the decoder at latents from the aggregate posterior, each
-    /// shifted to a centre time drawn from the examples'. The per-row values
-    /// are `t0` (the centre, s) and `snr` (the draw's norm).
-    pub fn sample(&self, n: usize, seed: u64) -> Result<Draws, Error> {
+    /// The class labels it draws.
+    pub fn class_labels(&self) -> Vec<usize> {
+        self.classes.iter().map(|p| p.class).collect()
+    }
+
+    /// Draws `n` glitches of `class`, or of its classes in proportion to
+    /// their training examples when `class` is `None`: the decoder at
+    /// latents from the class's aggregate posterior, each shifted to a
+    /// centre time drawn from the class's examples'. The per-row values are
+    /// `t0` (the centre, s) and `snr` (the draw's norm).
+    pub fn sample(&self, n: usize, seed: u64, class: Option<usize>) -> Result<Draws, Error> {
+        let parts: Vec<&ClassPart> = self.classes.iter().filter(|p| class.is_none_or(|c| p.class == c)).collect();
+        if parts.is_empty() {
+            let names: Vec<String> = self.classes.iter().map(|p| class_name(p.class)).collect();
+            return Err(Error::Bind(format!(
+                "this generator draws {}, not {}",
+                names.join(", "),
+                class.map_or_else(String::new, class_name)
+            )));
+        }
         let model = vae_model()?;
         let scene = model.scene(Some("sample"))?;
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
-        let mask = passband(self.band);
-        let plan: Vec<(Vec<f64>, f64)> = (0..n)
+        let masks: Vec<Vec<f64>> = parts.iter().map(|p| passband(p.band)).collect();
+        let onehots: Vec<Vec<f64>> = parts.iter().map(|p| onehot(p.class)).collect();
+        // A random training example of the drawn classes picks the class,
+        // so classes come in proportion to their examples.
+        let examples: Vec<(usize, usize)> =
+            parts.iter().enumerate().flat_map(|(k, p)| (0..p.posteriors.len()).map(move |i| (k, i))).collect();
+        let plan: Vec<(usize, Vec<f64>, f64)> = (0..n)
             .map(|_| {
-                let (mean, sd) = &self.posteriors[rng.random_range(0..self.posteriors.len())];
+                let (k, i) = examples[rng.random_range(0..examples.len())];
+                let (mean, sd) = &parts[k].posteriors[i];
                 let z = mean.iter().zip(sd).map(|(m, s)| m + s * Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect();
-                (z, self.centres[rng.random_range(0..self.centres.len())])
+                (k, z, parts[k].centres[rng.random_range(0..parts[k].centres.len())])
             })
             .collect();
         let rows: Vec<Result<Vec<f64>, Error>> = plan
@@ -289,11 +359,15 @@ impl LearnedGenerator {
                     for (name, w) in &self.weights {
                         run.input_real(name, w)?;
                     }
-                    run.input_real("passband", &mask)?;
-                    Ok(run)
+                    Ok((run, usize::MAX))
                 },
-                |run: &mut Result<gwml_runtime::Run, Error>, (z, centre)| {
-                    let run = run.as_mut().map_err(|e| Error::Bind(e.to_string()))?;
+                |bound: &mut Result<(gwml_runtime::Run, usize), Error>, (k, z, centre)| {
+                    let (run, set) = bound.as_mut().map_err(|e| Error::Bind(e.to_string()))?;
+                    if *set != *k {
+                        run.input_real("passband", &masks[*k])?;
+                        run.input_real("onehot", &onehots[*k])?;
+                        *set = *k;
+                    }
                     run.input_real("z", z)?;
                     let out = run.forward()?;
                     let Value::RealArray(g) = out.value("glitch")? else {
@@ -304,8 +378,9 @@ impl LearnedGenerator {
             )
             .collect();
         let rows = rows.into_iter().collect::<Result<Vec<_>, _>>()?;
-        let params = rows.iter().zip(&plan).map(|(r, (_, c))| vec![*c, r.iter().map(|v| v * v).sum::<f64>().sqrt()]).collect();
-        Ok(Draws { rows, names: vec!["t0".into(), "snr".into()], params })
+        let params = rows.iter().zip(&plan).map(|(r, (_, _, c))| vec![*c, r.iter().map(|v| v * v).sum::<f64>().sqrt()]).collect();
+        let labels = plan.iter().map(|(k, _, _)| parts[*k].class).collect();
+        Ok(Draws { rows, labels, names: vec!["t0".into(), "snr".into()], params })
     }
 
     /// The weights file beside a generator's JSON file.
@@ -319,19 +394,28 @@ impl LearnedGenerator {
         let tensors =
             self.weights.iter().map(|(name, data)| Tensor { name: name.clone(), shape: vec![data.len()], data: data.clone() }).collect();
         checkpoint::save(&weights, &Checkpoint { tensors, metadata: BTreeMap::new() }).map_err(render)?;
+        let classes: Vec<serde_json::Value> = self
+            .classes
+            .iter()
+            .map(|p| {
+                serde_json::json!({
+                    "class": p.class,
+                    "name": class_name(p.class),
+                    "centres": p.centres,
+                    "band_hz": [p.band.0, p.band.1],
+                    "posterior_means": p.posteriors.iter().map(|q| &q.0).collect::<Vec<_>>(),
+                    "posterior_sds": p.posteriors.iter().map(|q| &q.1).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
         let json = serde_json::json!({
             "kind": "learned",
-            "family": GLITCH_CLASSES[self.class],
-            "class": self.class,
             "model": "lab/models/glitch/vae.gw (embedded in gwml)",
             "latent": LATENT,
             "weights": weights.file_name().map(|f| f.to_string_lossy().into_owned()),
             "epochs": self.epochs,
             "final_loss": self.final_loss,
-            "centres": self.centres,
-            "band_hz": [self.band.0, self.band.1],
-            "posterior_means": self.posteriors.iter().map(|p| &p.0).collect::<Vec<_>>(),
-            "posterior_sds": self.posteriors.iter().map(|p| &p.1).collect::<Vec<_>>(),
+            "classes": classes,
         });
         let text = serde_json::to_string_pretty(&json).map_err(|e| format!("error: {e}"))?;
         std::fs::write(path, text + "\n").map_err(|e| format!("error: cannot write {}: {e}", path.display()))
@@ -341,45 +425,19 @@ impl LearnedGenerator {
     /// (its weights from the file named beside it).
     pub fn from_json(v: &serde_json::Value, path: &Path) -> Result<LearnedGenerator, String> {
         let bad = |what: &str| format!("not a learned gwml generator: {what}");
-        let class = v["class"].as_u64().filter(|c| (*c as usize) < GLITCH_CLASSES.len()).ok_or_else(|| bad("no glitch `class`"))? as usize;
-        let centres: Vec<f64> = v["centres"]
-            .as_array()
-            .ok_or_else(|| bad("no `centres`"))?
-            .iter()
-            .map(|c| c.as_f64().filter(|c| (0.0..=1.0).contains(c)).ok_or_else(|| bad("a centre outside 0..1 s")))
-            .collect::<Result<_, _>>()?;
-        if centres.is_empty() {
-            return Err(bad("no centres"));
-        }
-        let band = match v["band_hz"].as_array().map(|b| b.iter().map(|f| f.as_f64()).collect::<Vec<_>>()).as_deref() {
-            Some([Some(lo), Some(hi)]) if WHITENED_BAND.0 <= *lo && lo < hi && *hi <= WHITENED_BAND.1 => (*lo, *hi),
-            _ => {
-                return Err(bad(&format!(
-                    "`band_hz` must be two frequencies within {}–{} Hz, lowest first",
-                    WHITENED_BAND.0, WHITENED_BAND.1
-                )))
+        let entries = v["classes"].as_array().filter(|c| !c.is_empty()).ok_or_else(|| bad("no `classes`"))?;
+        let mut classes: Vec<ClassPart> = Vec::with_capacity(entries.len());
+        for (k, c) in entries.iter().enumerate() {
+            let part = ClassPart::from_json(c).map_err(|e| bad(&format!("classes[{k}]: {e}")))?;
+            if classes.iter().any(|p| p.class == part.class) {
+                return Err(bad(&format!("class {} appears twice in `classes`", part.class)));
             }
-        };
-        let rows = |key: &str| -> Result<Vec<Vec<f64>>, String> {
-            let rows = v[key].as_array().ok_or_else(|| bad(&format!("no `{key}`")))?;
-            rows.iter()
-                .map(|r| {
-                    let xs: Vec<f64> = r.as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
-                    if xs.len() != LATENT || xs.iter().any(|x| !x.is_finite()) {
-                        return Err(bad(&format!("each row of `{key}` must hold {LATENT} finite numbers")));
-                    }
-                    Ok(xs)
-                })
-                .collect()
-        };
+            classes.push(part);
+        }
+        classes.sort_by_key(|p| p.class);
         let file = v["weights"].as_str().ok_or_else(|| bad("no `weights` file"))?;
         let weights_path = path.parent().unwrap_or(Path::new(".")).join(file);
         let ck = checkpoint::load(&weights_path).map_err(|e| e.render(false))?;
-        let (means, sds) = (rows("posterior_means")?, rows("posterior_sds")?);
-        if means.is_empty() || means.len() != sds.len() {
-            return Err(bad("`posterior_means` and `posterior_sds` must be non-empty and as long as each other"));
-        }
-        let posteriors = means.into_iter().zip(sds).collect();
         let weights: Vec<(String, Vec<f64>)> = ck.tensors.into_iter().map(|t| (t.name, t.data)).collect();
         // The weights must fit the decoder gwml embeds.
         let model = vae_model().map_err(render)?;
@@ -399,19 +457,56 @@ impl LearnedGenerator {
             return Err(format!("{}: no weights for {}", weights_path.display(), missing.join(", ")));
         }
         Ok(LearnedGenerator {
-            class,
+            classes,
             weights,
-            centres,
-            band,
-            posteriors,
             epochs: v["epochs"].as_u64().unwrap_or(0) as usize,
             final_loss: v["final_loss"].as_f64().unwrap_or(f64::NAN),
         })
     }
 }
 
-/// `gwml generator fit --kind learned`.
-pub fn fit_command(a: &GeneratorFitArgs, class: usize, examples: &[Vec<f64>], threads: usize) -> Result<(), String> {
+impl ClassPart {
+    /// Reads one entry of a learned generator's `classes`.
+    fn from_json(v: &serde_json::Value) -> Result<ClassPart, String> {
+        let class =
+            v["class"].as_u64().filter(|c| (*c as usize) < CLASS_SLOTS).ok_or_else(|| format!("no `class` label below {CLASS_SLOTS}"))?
+                as usize;
+        let centres: Vec<f64> = v["centres"]
+            .as_array()
+            .ok_or("no `centres`")?
+            .iter()
+            .map(|c| c.as_f64().filter(|c| (0.0..=1.0).contains(c)).ok_or("a centre outside 0..1 s"))
+            .collect::<Result<_, _>>()?;
+        if centres.is_empty() {
+            return Err("no centres".into());
+        }
+        let band = match v["band_hz"].as_array().map(|b| b.iter().map(|f| f.as_f64()).collect::<Vec<_>>()).as_deref() {
+            Some([Some(lo), Some(hi)]) if WHITENED_BAND.0 <= *lo && lo < hi && *hi <= WHITENED_BAND.1 => (*lo, *hi),
+            _ => return Err(format!("`band_hz` must be two frequencies within {}–{} Hz, lowest first", WHITENED_BAND.0, WHITENED_BAND.1)),
+        };
+        let rows = |key: &str| -> Result<Vec<Vec<f64>>, String> {
+            let rows = v[key].as_array().ok_or_else(|| format!("no `{key}`"))?;
+            rows.iter()
+                .map(|r| {
+                    let xs: Vec<f64> = r.as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
+                    if xs.len() != LATENT || xs.iter().any(|x| !x.is_finite()) {
+                        return Err(format!("each row of `{key}` must hold {LATENT} finite numbers"));
+                    }
+                    Ok(xs)
+                })
+                .collect()
+        };
+        let (means, sds) = (rows("posterior_means")?, rows("posterior_sds")?);
+        if means.is_empty() || means.len() != sds.len() {
+            return Err("`posterior_means` and `posterior_sds` must be non-empty and as long as each other".into());
+        }
+        Ok(ClassPart { class, centres, band, posteriors: means.into_iter().zip(sds).collect() })
+    }
+}
+
+/// `gwml generator fit --kind learned` on `examples`, example `i` of class
+/// `labels[i]`.
+pub fn fit_command(a: &GeneratorFitArgs, examples: &[Vec<f64>], labels: &[usize], threads: usize) -> Result<(), String> {
     let bar = ProgressBar::new(a.epochs as u64);
     bar.set_style(
         ProgressStyle::with_template("training [{bar:30}] epoch {pos}/{len}, {msg}, eta {eta}")
@@ -420,49 +515,63 @@ pub fn fit_command(a: &GeneratorFitArgs, class: usize, examples: &[Vec<f64>], th
     );
     let start = Instant::now();
     let options = LearnedOptions { epochs: a.epochs, seed: a.seed, threads };
-    let (g, _) = fit(examples, class, options, |r| {
+    let (g, _) = fit(examples, labels, options, |r| {
         bar.set_message(format!("loss {:.1}", r.train_loss));
         bar.inc(1);
     })
     .map_err(render)?;
     bar.finish_and_clear();
     g.write(&a.out)?;
-    let c = quantiles(&g.centres, &[0.05, 0.5, 0.95]);
+    let names: Vec<String> = g.classes.iter().map(|p| class_name(p.class)).collect();
     println!(
-        "trained a {} generator on {} examples in {:.1} s ({} epochs, {threads} threads; final loss {:.1} per example); \
-         example centres {:.3} s [5 %: {:.3}, 95 %: {:.3}]; band {:.0}–{:.0} Hz; wrote {} and {}",
-        GLITCH_CLASSES[class],
+        "trained a {} generator on {} examples in {:.1} s ({} epochs, {threads} threads; final loss {:.1} per example); wrote {} and {}",
+        names.join(" + "),
         examples.len(),
         start.elapsed().as_secs_f64(),
         a.epochs,
         g.final_loss,
-        c[1],
-        c[0],
-        c[2],
-        g.band.0,
-        g.band.1,
         a.out.display(),
         LearnedGenerator::weights_path(&a.out).display()
     );
+    for (p, name) in g.classes.iter().zip(&names) {
+        let c = quantiles(&p.centres, &[0.05, 0.5, 0.95]);
+        println!(
+            "  {name}: {} examples; centres {:.3} s [5 %: {:.3}, 95 %: {:.3}]; band {:.0}–{:.0} Hz",
+            p.centres.len(),
+            c[1],
+            c[0],
+            c[2],
+            p.band.0,
+            p.band.1
+        );
+    }
     if let Some(path) = &a.plot {
-        plot_examples_and_draws(path, &g, examples)?;
+        plot_examples_and_draws(path, &g, examples, labels)?;
         println!("wrote {}", path.display());
     }
     Ok(())
 }
 
-/// Three centred examples above three centred draws, offset per row.
-fn plot_examples_and_draws(path: &Path, g: &LearnedGenerator, examples: &[Vec<f64>]) -> Result<(), String> {
-    let draws = g.sample(3, 1).map_err(render)?;
-    let mut rows: Vec<(String, Vec<f64>)> =
-        examples.iter().take(3).enumerate().map(|(i, x)| (format!("example {}", i + 1), centred(x).0)).collect();
-    rows.extend(draws.rows.iter().enumerate().map(|(i, x)| (format!("draw {} (no noise)", i + 1), centred(x).0)));
+/// Centred examples above centred draws, offset per row: three of each for
+/// one class, one of each for up to four classes.
+fn plot_examples_and_draws(path: &Path, g: &LearnedGenerator, examples: &[Vec<f64>], labels: &[usize]) -> Result<(), String> {
+    let shown = &g.classes[..g.classes.len().min(4)];
+    let each = if shown.len() == 1 { 3 } else { 1 };
+    let mut rows: Vec<(String, Vec<f64>)> = Vec::new();
+    for p in shown {
+        let name = class_name(p.class);
+        let of_class = examples.iter().zip(labels).filter(|(_, l)| **l == p.class).take(each);
+        rows.extend(of_class.enumerate().map(|(i, (x, _))| (format!("{name} example {}", i + 1), centred(x).0)));
+        let draws = g.sample(each, 1, Some(p.class)).map_err(render)?;
+        rows.extend(draws.rows.iter().enumerate().map(|(i, x)| (format!("{name} draw {} (no noise)", i + 1), centred(x).0)));
+    }
     let spacing = 2.2 * rows.iter().flat_map(|r| &r.1).fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
     let times: Vec<f64> = (0..SAMPLES).map(|j| j as f64 / SAMPLE_RATE - 0.5).collect();
     let offset: Vec<Vec<f64>> = rows.iter().enumerate().map(|(k, (_, r))| r.iter().map(|v| v - spacing * k as f64).collect()).collect();
     let series: Vec<(&str, &[f64], &[f64])> =
         rows.iter().zip(&offset).map(|((l, _), y)| (l.as_str(), times.as_slice(), y.as_slice())).collect();
-    let title = format!("{} generator: examples and draws, centred", GLITCH_CLASSES[g.class]);
+    let names: Vec<String> = shown.iter().map(|p| class_name(p.class)).collect();
+    let title = format!("{} generator: examples and draws, centred", names.join(" + "));
     crate::plot::lines_plot(path, &title, "time from the centre (s)", "whitened strain, offset per row", &series)
 }
 

@@ -341,7 +341,7 @@ impl Generator {
             let w = unit_signal(&mut run, class, &settings).map_err(|e| e.to_string())?;
             rows.push(w.into_iter().map(|v| snr * v).collect());
         }
-        Ok(Draws { rows, names: self.params.iter().map(|p| p.name.clone()).collect(), params: draws })
+        Ok(Draws { labels: vec![class; rows.len()], rows, names: self.params.iter().map(|p| p.name.clone()).collect(), params: draws })
     }
 
     /// The generator as JSON (the file `gwml generator fit` writes).
