@@ -81,12 +81,12 @@ fn the_two_sample_test_tells_shapes_apart_and_not_one_set_from_itself() {
 
 /// The learned generator on ringdowns, a shape no `std::glitch` formula
 /// has (150 epochs on 350 examples at SNR 15–30). Its training loss
-/// explains 91 % of the examples' signal energy (the time-domain decoder
+/// explains 87 % of the examples' signal energy (the time-domain decoder
 /// before it: about half), and at SNR 20 the critic tells its draws from
-/// held-out ringdowns at 0.74 (the time-domain decoder: 0.83) where it
-/// tells blips from them at 0.94. Issue #30's target is 0.60 at SNR 40, measured with
+/// held-out ringdowns at 0.72 (before: 0.83) where it tells blips from them
+/// at 0.94. Issue #30's target is 0.60 at SNR 40, measured with
 /// `scripts/generator_realism.sh` (`results/generator/realism/`); this
-/// test's draw of the set is harder (0.79 at SNR 40 where the script's
+/// test's draw of the set is harder (0.80 at SNR 40 where the script's
 /// sets give 0.52–0.66) and it holds the ground gained.
 #[test]
 fn the_learned_generator_learns_ringdowns() {
