@@ -86,8 +86,9 @@ fn the_two_sample_test_tells_shapes_apart_and_not_one_set_from_itself() {
 /// held-out ringdowns at 0.72 (before: 0.83) where it tells blips from them
 /// at 0.94. Issue #30's target is 0.60 at SNR 40, measured with
 /// `scripts/generator_realism.sh` (`results/generator/realism/`); this
-/// test's draw of the set is harder (0.80 at SNR 40 where the script's
-/// sets give 0.52–0.66) and it holds the ground gained.
+/// test's draw of the set is harder (0.79–0.80 at SNR 40 where the
+/// script's sets, drawn from the same distribution, give 0.54–0.56; why is
+/// not known) and it holds the ground gained.
 #[test]
 fn the_learned_generator_learns_ringdowns() {
     let clean = shapes(0, 500, 5);

@@ -58,8 +58,9 @@ pub struct GeneratorFitArgs {
     /// family's `std::glitch` formula (the baseline).
     #[arg(long, value_enum, default_value_t = Kind::Learned)]
     pub kind: Kind,
-    /// Training epochs of the learned generator.
-    #[arg(long, default_value_t = 200)]
+    /// Training epochs of the learned generator (the realism tables of
+    /// `results/generator/realism/` are at 150; 200 measured no better).
+    #[arg(long, default_value_t = 150)]
     pub epochs: usize,
     /// Hold this fraction of each class's examples (its last rows) out of
     /// the fit and measure the generator's realism against them: a classifier
