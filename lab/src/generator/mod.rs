@@ -323,7 +323,16 @@ pub fn read_examples(path: &Path, families: &[usize]) -> Result<Examples, String
     let keep: Vec<usize> = (0..x.rows()).filter(|i| families.is_empty() || families.contains(&labels[*i])).collect();
     if keep.is_empty() {
         let names: Vec<String> = families.iter().map(|c| class_name(*c)).collect();
-        return Err(format!("error: {} has no examples of {}", path.display(), names.join(" or ")));
+        let mut present = labels.clone();
+        present.sort_unstable();
+        present.dedup();
+        let present: Vec<String> = present.into_iter().map(|c| format!("{c} ({})", class_name(c))).collect();
+        return Err(format!(
+            "error: {} has no examples of {}: its `label` array holds {} (labels 0–7 are the classes of `gwml data glitch`, in its order)",
+            path.display(),
+            names.join(" or "),
+            present.join(", ")
+        ));
     }
     let clean = match ds.arrays.get("clean") {
         Some(c) if c.shape != x.shape => {
