@@ -62,7 +62,7 @@ pub struct LearnedGenerator {
     pub classes: Vec<ClassPart>,
     /// The decoder's weight tensors, by scene input name (`decoder.k1`, ...).
     pub weights: Vec<(String, Vec<f64>)>,
-    /// Training epochs and the last epoch's mean loss.
+    /// Training epochs.
     pub epochs: usize,
     /// Mean negative ELBO per example after the last epoch.
     pub final_loss: f64,
