@@ -6,7 +6,8 @@
 use gwml_lab::explain::*;
 use gwml_lab::strain::{simulate, NoiseCurve, StrainOptions, SAMPLE_RATE};
 use gwml_lab::synth::GLITCH_CLASSES;
-use gwml_strain::whitening::{whiten_series, WhitenOptions, Whitener};
+use gwml_strain::psd::{Welch, WelchOptions};
+use gwml_strain::whitening::{whiten_series, whiten_with, WhitenOptions, Whitened, Whitener};
 
 #[test]
 fn each_family_is_told_apart_and_its_params_recovered() {
@@ -19,9 +20,9 @@ fn each_family_is_told_apart_and_its_params_recovered() {
     let overlap = |o: &Outcome| o.verdict() == "Tomte" && GLITCH_CLASSES[o.injection.class] == "Blip" && f0(o) < 80.0;
     let right = outcomes.iter().filter(|o| o.right() || overlap(o)).count();
     let verdicts: Vec<(&str, &str, f64)> = outcomes.iter().map(|o| (GLITCH_CLASSES[o.injection.class], o.verdict(), f0(o))).collect();
-    // The campaign (README) wins Blip 90-95 %, Koi Fish ~86 % (fewer at
-    // SNR 15-30), Whistle ~95 %, Scratchy 100 %, Chirp 92-99 %, Tomte
-    // 95 %, Scattered Light ~94 %: ~26 of these 28 on average.
+    // The campaign (README) wins Blip 94-98 %, Koi Fish 89-92 % (fewer
+    // at SNR 15-30), Whistle 94-100 %, Scratchy 100 %, Chirp 95-96 %,
+    // Tomte 100 %, Scattered Light 95-99 %: ~26 of these 28 on average.
     assert!(right >= 23, "{right} of 28 explained by the injected family: {verdicts:?}");
     for (label, n, right, params) in summarise(&outcomes) {
         let overlapping = outcomes.iter().filter(|o| GLITCH_CLASSES[o.injection.class] == label && overlap(o)).count();
@@ -168,12 +169,86 @@ fn a_fit_at_a_lower_rate_has_the_full_rate_loss() {
     let low = decimate(&win.d, &win.psd, 4);
     for params in [
         vec![("dt", 0.0), ("snr", 18.0), ("phi", 1.0), ("f0", 45.0), ("q", 2.5), ("asym", 1.5)],
-        vec![("dt", 0.1), ("snr", 5.0), ("phi", 4.0), ("f0", 75.0), ("q", 1.2), ("asym", 4.0)],
+        vec![("dt", 0.1), ("snr", 5.0), ("phi", 4.0), ("f0", 60.0), ("q", 1.2), ("asym", 4.0)],
     ] {
         let full = loss_at(4096.0, &win.d, &win.psd, &params);
         let reduced = loss_at(1024.0, &low.d, &low.psd, &params) + low.cut_loss;
-        // At the bounds' corner (f0 75 Hz, Q 1.2, asym 4) ~1e-4 of the
-        // template's energy lies above 512 Hz: 0.002 in ln L at SNR 5.
+        // At the bounds' corner (f0 60 Hz, Q 1.2, asym 4) little of the
+        // template's energy lies above 512 Hz (at f0 75 Hz ~1e-4: 0.002
+        // in ln L at SNR 5).
         assert!((full - reduced).abs() < 0.01, "{params:?}: full rate {full}, quarter rate {reduced}");
     }
+}
+
+#[test]
+fn the_campaign_strain_keeps_its_glitches_out_of_its_own_psd() {
+    // The campaign whitens each stretch by the Welch PSD of that stretch.
+    // Koi Fish are the loudest class (SNR 12-400): at 10 a minute, two in
+    // three 4 s segments held one and the median PSD rose with them, so a
+    // Koi Fish's whitened SNR came out 0.73-0.88 of its injected SNR. At
+    // the campaign's rate it keeps ≥ 0.95 of it; the noise-free signal is
+    // the strain less the same stretch simulated without glitches.
+    let koi_fish = GLITCH_CLASSES.iter().position(|c| *c == "Koi Fish").unwrap();
+    let o = CampaignOptions { per_class: 10, classes: vec![koi_fish], snr: None, window: 2.0, seed: 1 };
+    let band = (20.0, 2000.0);
+    let whitener = Whitener::new().unwrap();
+    let kept = |rate: f64| {
+        let strain = StrainOptions { glitch_rate: rate, ..campaign_strain(&o, koi_fish, 0) };
+        let (noisy, injections) = simulate(&strain).unwrap();
+        let (noise, _) = simulate(&StrainOptions { glitch_rate: 0.0, ..strain }).unwrap();
+        let fs = noisy.sample_rate;
+        let psd = Welch::new(fs, WelchOptions::seconds(4.0, fs)).unwrap().estimate(&noisy.samples).unwrap();
+        let clean: Vec<f64> = noisy.samples.iter().zip(&noise.samples).map(|(a, b)| a - b).collect();
+        let options = WhitenOptions { taper: 2.0, band, classifier_band: band };
+        let scene = whitener.scene(clean.len(), fs, &options).unwrap();
+        let mut run = scene.bind();
+        let (w, _) = whiten_with(&mut run, &clean, &psd, (fs, noisy.gps_start, "clean")).unwrap();
+        let whitened = Whitened { gps_start: noisy.gps_start, sample_rate: fs, w: w.clone(), w_clf: w, psd };
+        let mut ratios: Vec<f64> = injections
+            .iter()
+            .map(|i| window_at(&whitened, i.gps_time, (2.0 * fs) as usize).unwrap().d.iter().map(|v| v * v).sum::<f64>().sqrt() / i.snr)
+            .collect();
+        assert!(ratios.len() >= 5, "{} injections at {rate} a minute", ratios.len());
+        ratios.sort_by(f64::total_cmp);
+        ratios[ratios.len() / 2]
+    };
+    let (campaign, dense) = (kept(CAMPAIGN_RATE), kept(10.0));
+    assert!(campaign >= 0.95, "at the campaign's rate the median Koi Fish keeps {campaign:.3} of its SNR");
+    assert!(dense < 0.92, "at 10 a minute the median Koi Fish keeps {dense:.3} of its SNR");
+}
+
+#[test]
+fn loud_tomtes_are_fitted_on_their_own_ridge() {
+    // A Tomte's Q, rise and decay trade along a ridge. From the two best
+    // starts at the loudest tile's time, the Tomte fit of a loud Tomte
+    // could end on its bounds (asym 1, Q 5) ten units of loss short of the
+    // truth's, and the blip fit or a Koi Fish's head took the window: on
+    // the campaign's seed 1, its 28th, 48th, 50th and 55th Tomtes (SNR 41,
+    // 47, 26 and 27). Starts a few ms either side of the tile, six of them
+    // refined, find the ridge. Those four, as the campaign draws them:
+    let tomte = GLITCH_CLASSES.iter().position(|c| *c == "Tomte").unwrap();
+    let o = CampaignOptions { per_class: 100, classes: vec![tomte], snr: None, window: 2.0, seed: 1 };
+    let band = (20.0, 2000.0);
+    let explainer = Explainer::new(&ExplainOptions { sample_rate: SAMPLE_RATE, window: 2.0, band }).unwrap();
+    let whitener = Whitener::new().unwrap();
+    let wanted = [27, 47, 49, 54];
+    let (mut seen, mut verdicts) = (0, Vec::new());
+    for stretch in 0.. {
+        let (series, injections) = simulate(&campaign_strain(&o, tomte, stretch)).unwrap();
+        let options = WhitenOptions { taper: 2.0, band, classifier_band: band };
+        let w = whiten_series(&whitener, &series, 4.0, &options).unwrap();
+        for injection in injections.iter().filter(|i| i.snr >= MIN_SNR) {
+            if wanted.contains(&seen) {
+                let (_, _, e) = explain_at(&explainer, &w, injection.gps_time, band).unwrap();
+                verdicts.push((injection.snr, e.best().map_or("None", |f| f.family.label)));
+            }
+            seen += 1;
+        }
+        if seen > wanted[3] {
+            break;
+        }
+    }
+    assert_eq!(verdicts.len(), 4);
+    assert!(verdicts.iter().all(|v| v.1 == "Tomte"), "{verdicts:?}");
+    assert!(verdicts[0].0 > 40.0 && verdicts[1].0 > 45.0, "not the campaign's Tomtes: {verdicts:?}");
 }

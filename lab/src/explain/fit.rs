@@ -112,7 +112,7 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
             let ranked = rank_starts(&mut run, &free, starts, &inside, &mut evaluations)?;
             // 2. L-BFGS from the best starts.
             let mut best: Option<Minimum> = None;
-            for (_, x0) in ranked.iter().take(STARTS_REFINED) {
+            for (_, x0) in ranked.iter().take(family.refined) {
                 let m = refine(&mut run, x0, &mut evaluations)?;
                 best = Some(match best {
                     Some(b) => better(b, m),
