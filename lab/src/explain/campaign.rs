@@ -113,7 +113,9 @@ impl Outcome {
 /// and the median rose with them, up to 1.7 times the true PSD at a Koi
 /// Fish's frequencies (its whitened SNR came out 0.73-0.88 of the injected,
 /// a Tomte's 0.85-0.90, a Blip's 0.93-0.96; at one a minute 0.97-0.99).
-/// Real detectors glitch of the order of once a minute above SNR 7.5.
+/// One a minute stands for a glitchy stretch of a real detector (an
+/// assumption, not a measured rate); what matters is that few Welch
+/// segments hold a glitch.
 pub const CAMPAIGN_RATE: f64 = 1.0;
 /// Seconds of strain simulated and whitened at a time (each stretch with
 /// its own PSD, as `gwml scan` estimates one per stretch).

@@ -13,7 +13,7 @@
 //!    each start's amplitude
 //!    and phase from the data's projection on the template's two
 //!    quadratures (two forward evaluations, no optimiser);
-//! 2. refines the best [`STARTS_REFINED`] starts with L-BFGS inside the
+//! 2. refines the best starts ([`STARTS_REFINED`], a Tomte's six) with L-BFGS inside the
 //!    bounds (the phase is periodic and left unbounded; a whistle's first
 //!    steps scaled by each param's curvature);
 //! 3. takes the Fisher matrix at the best fit (the loss's Hessian,
