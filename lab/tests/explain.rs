@@ -21,7 +21,7 @@ fn each_family_is_told_apart_and_its_params_recovered() {
     let right = outcomes.iter().filter(|o| o.right() || overlap(o)).count();
     let verdicts: Vec<(&str, &str, f64)> = outcomes.iter().map(|o| (GLITCH_CLASSES[o.injection.class], o.verdict(), f0(o))).collect();
     // The campaign (README) wins Blip 94-98 %, Koi Fish 89-92 % (fewer
-    // at SNR 15-30), Whistle 94-100 %, Scratchy 100 %, Chirp 95-96 %,
+    // at SNR 15-30), Whistle 94-100 %, Scratchy 100 %, Chirp 97-98 %,
     // Tomte 100 %, Scattered Light 95-99 %: ~26 of these 28 on average.
     assert!(right >= 23, "{right} of 28 explained by the injected family: {verdicts:?}");
     for (label, n, right, params) in summarise(&outcomes) {
