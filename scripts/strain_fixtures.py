@@ -4,6 +4,7 @@
     python3.11 -m venv /tmp/venv && /tmp/venv/bin/pip install numpy scipy h5py gwpy
     /tmp/venv/bin/python scripts/strain_fixtures.py            # writes fixtures/strain/
     /tmp/venv/bin/python scripts/strain_fixtures.py --check-gwpy FILE.hdf5
+    /tmp/venv/bin/python scripts/strain_fixtures.py --decimation   # only the decimation fixture
 
 Writes, into fixtures/strain/ (run with numpy 2, scipy 1.17, h5py 3, gwpy 4):
 - gwosc_contiguous.hdf5: H1, GPS 1126259446, 16 s at 512 Hz, contiguous
@@ -27,6 +28,12 @@ Writes, into fixtures/strain/ (run with numpy 2, scipy 1.17, h5py 3, gwpy 4):
   nperseg 256 and 1024, average median and mean, detrend 'constant' and
   False. scipy divides the median by its bias for the number of segments K,
   1 + sum_{i=1}^{(K-1)//2} (1/(2i+1) - 1/(2i)).
+- decimation_input.npy and decimation_expected.json (only these, with
+  --decimation): scipy.signal.firwin's Kaiser-window low-pass taps (beta
+  8) for decimation by 2 and 4 (96 k + 1 taps, cut at 0.98 / k of the
+  Nyquist frequency), and 4096 samples of coloured noise with a tone
+  filtered by numpy.convolve and kept at every k-th sample (sample j of
+  the output at input sample j k: zero phase).
 --check-gwpy reads a file with gwpy's GWOSC reader and prints what it found
 (exit status 1 if it cannot).
 """
@@ -159,6 +166,24 @@ def fixtures():
         print(f"wrote {p.relative_to(OUT.parent.parent)} ({p.stat().st_size} bytes)")
 
 
+def decimation_fixture():
+    from scipy.signal import firwin
+
+    rng = np.random.default_rng(11)
+    n = 4096
+    x = coloured(rng, n, 16384.0) + np.cos(2 * np.pi * 300.0 * np.arange(n) / 16384.0 + 0.4)
+    np.save(OUT / "decimation_input.npy", x)
+    cases = []
+    for k in (2, 4):
+        taps = firwin(96 * k + 1, 0.98 / k, window=("kaiser", 8.0))
+        m = len(taps) // 2
+        full = np.convolve(x, taps)
+        cases.append(dict(factor=k, taps=[float(h) for h in taps], output=[float(v) for v in full[m:m + n:k]]))
+    (OUT / "decimation_expected.json").write_text(json.dumps(dict(cases=cases)) + "\n")
+    for name in ("decimation_input.npy", "decimation_expected.json"):
+        print(f"wrote fixtures/strain/{name} ({(OUT / name).stat().st_size} bytes)")
+
+
 def check_gwpy(path):
     from gwpy.timeseries import TimeSeries
 
@@ -175,4 +200,7 @@ def check_gwpy(path):
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "--check-gwpy":
         sys.exit(check_gwpy(sys.argv[2]))
+    if sys.argv[1:] == ["--decimation"]:
+        decimation_fixture()
+        sys.exit(0)
     fixtures()

@@ -54,7 +54,9 @@ enum Command {
     /// Write synthetic data: labelled datasets (.npz) or long strain in GWOSC layout (.hdf5).
     #[command(subcommand)]
     Data(DataCommand),
-    /// Scan strain files for glitches: PSD, whitening, Q-tile triggers, classification.
+    /// Scan strain files for glitches: PSD, whitening, Q-tile triggers, classification
+    /// (files at a whole multiple of the classifier's rate, such as GWOSC's 16384 Hz, are
+    /// decimated to it).
     Scan(scan::ScanArgs),
     /// Q-transform images of whitened strain around a GPS time (PNG), at
     /// Gravity Spy's four durations.

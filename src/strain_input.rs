@@ -44,7 +44,7 @@ impl StrainInput {
             return Err(format!("error: GPS {gps} and a span of {seconds} s must be finite (and the span positive)"));
         }
         let sources = self.open()?;
-        let (runs, _) = input::runs(&sources).map_err(|e| format!("error: {e}"))?;
+        let (runs, _) = input::runs(&sources, None).map_err(|e| format!("error: {e}"))?;
         let extent = |r: &StrainRun| (r.span.gps_start, r.span.gps_start + r.span.samples as f64 / r.span.sample_rate);
         let Some(run) = runs.iter().find(|r| (extent(r).0..extent(r).1).contains(&gps)) else {
             let covered: Vec<String> = runs.iter().map(|r| format!("{:.1}-{:.1}", extent(r).0, extent(r).1)).collect();

@@ -256,30 +256,41 @@ fn agree(world: &World, opened: Result<Opened, String>) -> Result<Opened, String
     Ok(opened)
 }
 
-/// The classifier the arguments ask for.
-fn classifier(a: &ScanArgs) -> Result<Option<Classifier>, String> {
+/// The manifest of the classifier the arguments ask for (`None` with
+/// --no-classify): its rate decides whether the files are decimated.
+fn manifest(a: &ScanArgs) -> Result<Option<Manifest>, String> {
     if a.no_classify {
         return Ok(None);
     }
     let fail = |e: gwml_strain::Error| format!("error: {e}");
-    let c = match (&a.model, &a.weights) {
+    let manifest = match (&a.model, &a.weights) {
         (None, Some(_)) => return Err("error: --weights needs --model (the .gw file they belong to)".into()),
-        (None, None) => Classifier::shipped().map_err(fail)?,
+        (None, None) => Manifest::shipped().map_err(fail)?,
         (Some(m), w) if m.extension().is_some_and(|e| e == "json") => {
             if w.is_some() {
                 return Err("error: a manifest names its own weights; drop --weights".into());
             }
-            Classifier::load(Manifest::read(m).map_err(fail)?).map_err(fail)?
+            Manifest::read(m).map_err(fail)?
         }
         (Some(m), Some(w)) => {
             // A bare model: the shipped manifest's conventions (classes, rate, band).
             let mut manifest = Manifest::shipped().map_err(fail)?;
             (manifest.model, manifest.weights) = (m.clone(), w.clone());
-            Classifier::load(manifest).map_err(fail)?
+            manifest
         }
         (Some(m), None) => return Err(format!("error: --model {} needs --weights (or give a manifest .json)", m.display())),
     };
-    Ok(Some(c))
+    Ok(Some(manifest))
+}
+
+/// The classifier the arguments ask for.
+fn classifier(a: &ScanArgs) -> Result<Option<Classifier>, String> {
+    let fail = |e: gwml_strain::Error| format!("error: {e}");
+    match manifest(a)? {
+        None => Ok(None),
+        Some(_) if a.model.is_none() => Classifier::shipped().map(Some).map_err(fail),
+        Some(m) => Classifier::load(m).map(Some).map_err(fail),
+    }
 }
 
 /// What identifies a scan's results: the files (path, size, modification
@@ -307,7 +318,8 @@ fn open_and_plan(a: &ScanArgs, options: &ScanOptions, world: &World) -> Result<O
     let sources = a.input.open()?;
     let spans: Vec<Span> = sources.iter().map(Source::span).collect();
     let (runs, gaps) = plan(&spans).map_err(fail)?;
-    let run_spans: Vec<Span> = runs.iter().map(|r| StrainRun::new(&sources, r).span).collect();
+    let rate = manifest(a)?.map(|m| m.sample_rate);
+    let run_spans: Vec<Span> = runs.iter().map(|r| StrainRun::new(&sources, r, rate).span).collect();
     let blocks = plan_blocks(&run_spans, a.block, options);
     let (parts, done) = match a.resume || a.mpi {
         true => {
@@ -320,7 +332,7 @@ fn open_and_plan(a: &ScanArgs, options: &ScanOptions, world: &World) -> Result<O
     let todo: Vec<usize> = (0..blocks.len()).filter(|i| !done.contains_key(i)).collect();
     let mine = deal(&todo, world.rank(), world.size());
     let first = match mine.first() {
-        Some(&i) => Some(StrainRun::new(&sources, &runs[blocks[i].run]).block(blocks[i].start, blocks[i].length).map_err(fail)?),
+        Some(&i) => Some(StrainRun::new(&sources, &runs[blocks[i].run], rate).block(blocks[i].start, blocks[i].length).map_err(fail)?),
         None => None,
     };
     Ok(Opened { sources, runs, gaps, blocks, parts, done, todo, mine, first })
@@ -368,7 +380,17 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     let Opened { sources, runs, gaps, blocks, parts, done, todo, mine, first } = agree(&world, opened)?;
     let scanner = scanner?;
     let setup_seconds = started.elapsed().as_secs_f64();
-    let runs: Vec<StrainRun> = runs.iter().map(|r| StrainRun::new(&sources, r)).collect();
+    let rate = scanner.classifier().map(|c| c.manifest.sample_rate);
+    let runs: Vec<StrainRun> = runs.iter().map(|r| StrainRun::new(&sources, r, rate)).collect();
+    if let Some(run) = runs.iter().find(|r| r.decimation().is_some()).filter(|_| world.is_root()) {
+        let k = run.decimation().unwrap_or(1);
+        println!(
+            "{} is sampled at {} Hz: read through a low-pass filter and decimated by {k} to the classifier's {} Hz",
+            run.span.source,
+            run.span.sample_rate * k as f64,
+            run.span.sample_rate
+        );
+    }
     let threads = a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build().map_err(|e| format!("error: {e}"))?;
     let total: f64 = sources.iter().map(|s| s.span()).map(|s| s.samples as f64 / s.sample_rate).sum();

@@ -130,7 +130,7 @@ pub fn scan_sources(
     (scanner, pool): (&Scanner, &rayon::ThreadPool),
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Report, Error> {
-    let (runs, gaps) = runs(sources)?;
+    let (runs, gaps) = runs(sources, scanner.classifier().map(|c| c.manifest.sample_rate))?;
     let spans: Vec<Span> = runs.iter().map(|r| r.span.clone()).collect();
     let blocks = plan_blocks(&spans, block_seconds, scanner.options());
     let all: Vec<usize> = (0..blocks.len()).collect();

@@ -1,7 +1,9 @@
 //! Strain inputs: GWOSC HDF5 files (read a window at a time) or a `.npy`
 //! held whole, joined into runs of consecutive files that are read a block
-//! at a time.
+//! at a time, decimated when they are sampled at a whole multiple of the
+//! rate the scan wants (a 16384 Hz file for a 4096 Hz classifier).
 
+use crate::decimate::Decimator;
 use crate::gwosc;
 use crate::series::{plan, Series, Skipped, Span};
 use crate::Error;
@@ -81,39 +83,63 @@ impl Source {
 }
 
 /// Inputs in time order as runs of consecutive ones, and the gaps between
-/// runs (see [`plan`]).
-pub fn runs(sources: &[Source]) -> Result<(Vec<StrainRun<'_>>, Vec<Skipped>), Error> {
+/// runs (see [`plan`]). With `rate`, a run sampled at a whole multiple of
+/// it is read decimated to it ([`decimation`]).
+pub fn runs(sources: &[Source], rate: Option<f64>) -> Result<(Vec<StrainRun<'_>>, Vec<Skipped>), Error> {
     let spans: Vec<Span> = sources.iter().map(Source::span).collect();
     let (runs, gaps) = plan(&spans)?;
-    Ok((runs.iter().map(|r| StrainRun::new(sources, r)).collect(), gaps))
+    Ok((runs.iter().map(|r| StrainRun::new(sources, r, rate)).collect(), gaps))
+}
+
+/// The factor that takes data sampled at `from` Hz to `to` Hz, when it is
+/// a whole number of at least 2 (other rates are read as they are, and a
+/// classifier at another rate refuses them).
+pub fn decimation(from: f64, to: f64) -> Option<usize> {
+    let k = from / to;
+    (k >= 2.0 && k.fract() == 0.0 && k <= 1024.0).then_some(k as usize)
 }
 
 /// Consecutive inputs read as one stretch, a block at a time.
 pub struct StrainRun<'s> {
     parts: Vec<&'s Source>,
-    /// The run's extent.
+    /// The run's extent (at the rate it is read at, after decimation).
     pub span: Span,
+    /// Samples in the files (before decimation).
+    stored: usize,
     /// The DQ words of the whole run (one per second), if every part has them.
     dq: Option<Vec<u32>>,
+    /// How the files' samples are brought to `span.sample_rate`, if they are.
+    decimator: Option<Decimator>,
 }
 
 impl<'s> StrainRun<'s> {
-    /// The inputs `indices` of `sources`, consecutive and in time order.
-    pub fn new(sources: &'s [Source], indices: &[usize]) -> StrainRun<'s> {
+    /// The inputs `indices` of `sources`, consecutive and in time order;
+    /// read decimated to `rate` if they are sampled at a whole multiple of it.
+    pub fn new(sources: &'s [Source], indices: &[usize], rate: Option<f64>) -> StrainRun<'s> {
         let parts: Vec<&Source> = indices.iter().map(|&i| &sources[i]).collect();
         let first = parts[0].span();
-        let samples = parts.iter().map(|p| p.span().samples).sum();
+        let stored: usize = parts.iter().map(|p| p.span().samples).sum();
         let whole = parts.iter().all(|p| {
             let s = p.span();
             (s.samples as f64 / s.sample_rate).fract() == 0.0
         });
         let dq = parts.iter().map(|p| p.dq().map(<[u32]>::to_vec)).collect::<Option<Vec<_>>>().filter(|_| whole).map(|v| v.concat());
         let source = parts.iter().map(|p| p.span().source).collect::<Vec<_>>().join(" + ");
-        StrainRun { span: Span { samples, source, ..first }, parts, dq }
+        let decimator = rate.and_then(|r| decimation(first.sample_rate, r)).map(Decimator::new);
+        let (samples, sample_rate) = match &decimator {
+            Some(d) => (stored.div_ceil(d.factor), first.sample_rate / d.factor as f64),
+            None => (stored, first.sample_rate),
+        };
+        StrainRun { span: Span { samples, source, sample_rate, ..first }, stored, parts, dq, decimator }
     }
 
-    /// Samples `start..start + count` of the run as a series.
-    pub fn block(&self, start: usize, count: usize) -> Result<Series, Error> {
+    /// The factor the files are decimated by, if they are.
+    pub fn decimation(&self) -> Option<usize> {
+        self.decimator.as_ref().map(|d| d.factor)
+    }
+
+    /// Samples `start..start + count` of the files, as stored.
+    fn stored_samples(&self, start: usize, count: usize) -> Result<Vec<f64>, Error> {
         let mut samples = Vec::with_capacity(count);
         let mut offset = 0;
         for part in &self.parts {
@@ -124,6 +150,23 @@ impl<'s> StrainRun<'s> {
             }
             offset += n;
         }
+        Ok(samples)
+    }
+
+    /// Samples `start..start + count` of the run as a series (after
+    /// decimation, if it is decimated: the files are read the filter's
+    /// reach beyond the block's ends, so blocks join seamlessly).
+    pub fn block(&self, start: usize, count: usize) -> Result<Series, Error> {
+        let samples = match &self.decimator {
+            None => self.stored_samples(start, count)?,
+            Some(d) => {
+                let count = count.min(self.span.samples.saturating_sub(start));
+                let from = (start * d.factor).saturating_sub(d.reach());
+                let to = ((start + count) * d.factor + d.reach()).min(self.stored);
+                let stored = self.stored_samples(from, to.saturating_sub(from))?;
+                d.apply(&stored, from, start, count)
+            }
+        };
         let fs = self.span.sample_rate;
         let (s0, s1) = ((start as f64 / fs) as usize, ((start + count) as f64 / fs).ceil() as usize);
         let aligned = (start as f64 / fs).fract() == 0.0;

@@ -2,7 +2,7 @@
 //!
 //! The scan pipeline, one module per stage: [`gwosc`] reads (and writes)
 //! GWOSC HDF5 strain files, [`input`] joins inputs into runs read a block
-//! at a time, [`series`] holds a stretch of strain and
+//! at a time (decimated to the classifier's rate by [`decimate`]), [`series`] holds a stretch of strain and
 //! splits it at missing data, [`psd`] estimates the noise PSD by Welch's
 //! method, [`qtransform`] tiles whitened data in time, frequency and Q,
 //! [`triggers`] clusters loud tiles into triggers, [`classifier`] labels
@@ -13,6 +13,7 @@
 
 pub mod blocks;
 pub mod classifier;
+pub mod decimate;
 pub mod gwosc;
 pub mod input;
 pub mod psd;
