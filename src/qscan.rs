@@ -47,9 +47,16 @@ pub fn whitener() -> Result<Whitener, String> {
 
 /// Whitened strain around `gps`: [`CONTEXT_SECONDS`] s read, whitened by
 /// its own PSD over `band` with `whitener` (reused across times, so its
-/// scene is compiled once).
-pub fn whitened_around(whitener: &Whitener, input: &StrainInput, gps: f64, band: (f64, f64)) -> Result<(Series, Whitened), String> {
-    let series = input.around(gps, CONTEXT_SECONDS)?;
+/// scene is compiled once); decimated to `rate` when the files are sampled
+/// at a whole multiple of it.
+pub fn whitened_around(
+    whitener: &Whitener,
+    input: &StrainInput,
+    gps: f64,
+    band: (f64, f64),
+    rate: Option<f64>,
+) -> Result<(Series, Whitened), String> {
+    let series = input.around(gps, CONTEXT_SECONDS, rate)?;
     let top = band.1.min(series.sample_rate / 2.0);
     let options = WhitenOptions { taper: 2.0, band: (band.0, top), classifier_band: (band.0, top) };
     let w = whiten_series(whitener, &series, CONTEXT_FFT_LENGTH, &options).map_err(|e| format!("error: {e}"))?;
@@ -114,7 +121,7 @@ pub fn qscan(a: QscanArgs) -> Result<(), String> {
         return Err("error: --durations needs at least one duration".into());
     }
     let band = (a.fmin, a.fmax);
-    let (series, w) = whitened_around(&whitener()?, &a.input, a.gps, band)?;
+    let (series, w) = whitened_around(&whitener()?, &a.input, a.gps, band, None)?;
     let images = q_images(&w, a.gps, &a.durations, band)?;
     let named: Vec<(String, &QImage)> = a.durations.iter().zip(&images).map(|(d, i)| (format!("{d} s"), i)).collect();
     let title = format!("{} Q-scan at GPS {:.3}", series.detector, a.gps);

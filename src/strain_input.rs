@@ -39,12 +39,14 @@ impl StrainInput {
     /// `gps` is near an end), with no missing samples: an error names what
     /// is wrong (outside the data, in a gap between files, a stretch
     /// without data, or files too short).
-    pub fn around(&self, gps: f64, seconds: f64) -> Result<Series, String> {
+    /// The data are read decimated to `rate` when the files are sampled at
+    /// a whole multiple of it.
+    pub fn around(&self, gps: f64, seconds: f64, rate: Option<f64>) -> Result<Series, String> {
         if !(gps.is_finite() && seconds > 0.0 && seconds.is_finite()) {
             return Err(format!("error: GPS {gps} and a span of {seconds} s must be finite (and the span positive)"));
         }
         let sources = self.open()?;
-        let (runs, _) = input::runs(&sources, None).map_err(|e| format!("error: {e}"))?;
+        let (runs, _) = input::runs(&sources, rate).map_err(|e| format!("error: {e}"))?;
         let extent = |r: &StrainRun| (r.span.gps_start, r.span.gps_start + r.span.samples as f64 / r.span.sample_rate);
         let Some(run) = runs.iter().find(|r| (extent(r).0..extent(r).1).contains(&gps)) else {
             let covered: Vec<String> = runs.iter().map(|r| format!("{:.1}-{:.1}", extent(r).0, extent(r).1)).collect();
