@@ -22,6 +22,7 @@ Usage: python3 scripts/blip_bank_reach.py WEIGHTS.safetensors [...]
 Needs numpy.
 """
 import argparse
+import functools
 import json
 import os
 import struct
@@ -32,7 +33,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from blip_realism import band_limited, centred  # noqa: E402
+from blip_realism import noisy_row  # noqa: E402
 from generator_shape_sets import FS, N, realfit  # noqa: E402
 
 F = np.fft.rfftfreq(N, 1 / FS)
@@ -100,13 +101,8 @@ def main():
                         "--seed", str(a.seed), "--out", path], check=True, stdout=subprocess.DEVNULL)
         noise = np.concatenate([np.load(path)["x"], rng.standard_normal((a.n, N))])
     snrs = [float(s) for s in a.snr.split(",")]
-    blips = {}
-    for snr in snrs:
-        rows = []
-        for _ in range(a.n):
-            s = centred(band_limited(realfit(rng, t, label="Blip")), rng.uniform(0.4, 0.6))
-            rows.append(s / np.linalg.norm(s) * snr + rng.standard_normal(N))
-        blips[snr] = np.array(rows)
+    blip = functools.partial(realfit, label="Blip")
+    blips = {snr: np.array([noisy_row(blip, rng, t, snr) for _ in range(a.n)]) for snr in snrs}
     print(f"share of real-fit Blips above the 97th percentile of None windows ({a.n} per cell)\n")
     print("| weights | templates | threshold | " + " | ".join(f"SNR {s:g}" for s in snrs) + " |")
     print("|---|---|---|" + "---|" * len(snrs))

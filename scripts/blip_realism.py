@@ -57,6 +57,13 @@ def centred(s, at):
     return np.roll(s, int(round(at * FS - centre)))
 
 
+def noisy_row(shape, rng, t, snr):
+    """One whitened row: a draw of `shape` band-limited, centred at 0.4-0.6 s,
+    scaled to `snr` and put in fresh unit-variance white noise."""
+    s = centred(band_limited(shape(rng, t)), rng.uniform(0.4, 0.6))
+    return s / np.linalg.norm(s) * snr + rng.standard_normal(N)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--manifest", default="models/glitch-classifier/glitch-classifier.json")
@@ -82,8 +89,7 @@ def main():
         rng = np.random.default_rng(a.seed * 1000 + k)
         for snr in snrs:
             for _ in range(a.n):
-                s = centred(band_limited(shape(rng, t)), rng.uniform(0.4, 0.6))
-                rows.append(s / np.linalg.norm(s) * snr + rng.standard_normal(N))
+                rows.append(noisy_row(shape, rng, t, snr))
                 keys.append((name, snr))
     with tempfile.TemporaryDirectory() as work:
         x, logits = os.path.join(work, "x.npy"), os.path.join(work, "logits.npy")
