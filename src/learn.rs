@@ -22,6 +22,29 @@ fn read_dataset(path: &Path) -> Result<Dataset, String> {
     Dataset::read(path).map_err(render)
 }
 
+/// The array a `--input NAME=PATH` names: a `.npy`'s one array; from a
+/// `.npz`, the array `KEY` of `PATH.npz:KEY`, else the one called `NAME`
+/// (so `--input x=data.npz` takes `x` from what `gwml data` writes), else
+/// its only array.
+fn input_array(name: &str, path: &str) -> Result<Array, String> {
+    let (file, key) = match path.rsplit_once(':') {
+        Some((file, key)) if file.ends_with(".npz") && !key.is_empty() => (file, Some(key)),
+        _ => (path, None),
+    };
+    let mut ds = read_dataset(Path::new(file))?;
+    let names = || ds.arrays.keys().cloned().collect::<Vec<_>>().join(", ");
+    let wanted = key.or_else(|| ds.arrays.contains_key(name).then_some(name));
+    match wanted {
+        Some(k) => {
+            let listed = names();
+            ds.arrays.remove(k).ok_or_else(|| format!("error: {file} has no array `{k}` (it holds {listed})"))
+        }
+        None if ds.arrays.len() == 1 => Ok(ds.arrays.into_values().next().expect("one array")),
+        None if ds.arrays.is_empty() => Err(format!("error: {file} holds no array")),
+        None => Err(format!("error: {file} holds {}: none is called `{name}`; name one with --input {name}={file}:ARRAY", names())),
+    }
+}
+
 /// `gwml train`.
 pub fn train(a: TrainArgs) -> Result<(), String> {
     let world = World::new(a.mpi)?;
@@ -172,9 +195,7 @@ pub fn predict(a: PredictArgs) -> Result<(), String> {
     let mut inputs: Vec<(String, Array)> = Vec::new();
     for s in &a.input {
         let (name, path) = split_pair(s, "--input")?;
-        let ds = read_dataset(Path::new(path))?;
-        let array = ds.arrays.into_values().next().ok_or_else(|| format!("error: {path} holds no array"))?;
-        inputs.push((name.to_string(), array));
+        inputs.push((name.to_string(), input_array(name, path)?));
     }
     let n = inputs.first().map_or(1, |(_, a)| a.rows());
     if let Some((name, arr)) = inputs.iter().find(|(_, a)| a.rows() != n) {

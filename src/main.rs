@@ -364,7 +364,9 @@ pub struct PredictArgs {
     /// A checkpoint written by `gwml train`.
     #[arg(long, value_name = "CKPT.safetensors")]
     pub weights: PathBuf,
-    /// An input as a .npy array with one row per example: `--input x=X.npy`.
+    /// An input with one row per example: `--input x=X.npy`, or from a .npz the array named like
+    /// the input (`--input x=data.npz`, as `gwml data` writes) or named after a colon
+    /// (`--input x=data.npz:signal`).
     #[arg(long = "input", value_name = "NAME=PATH.npy")]
     pub input: Vec<String>,
     /// Write an output, one row per example: `--output logits=Y.npy`.

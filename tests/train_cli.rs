@@ -113,3 +113,41 @@ fn glitch_data_has_eight_classes_of_whitened_segments() {
     let (ok, _, err) = gwml(&["data", "glitch", "--n", "2", "--koi-fish-loudness", "2", "--out", "/tmp/never.npz"]);
     assert!(!ok && err.contains("--koi-fish-loudness"), "{err}");
 }
+
+/// `gwml predict --input x=data.npz` takes the array `x` of what `gwml data
+/// glitch` writes (it used to take the first array, `label`, and fail on
+/// its length); `FILE.npz:ARRAY` names another; a missing one is an error
+/// listing what the file holds.
+#[test]
+fn predict_takes_an_npz_array_by_name() {
+    let dir = std::env::temp_dir().join(format!("gwml-predict-npz-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |name: &str| dir.join(name).display().to_string();
+    let (ok, _, err) = gwml(&["data", "glitch", "--n", "4", "--seed", "3", "--out", &p("d.npz")]);
+    assert!(ok, "{err}");
+    let predict = |input: &str, out: &str| {
+        gwml(&[
+            "predict",
+            "lab/models/glitch/template_net.gw",
+            "--scene",
+            "classify",
+            "--weights",
+            "models/glitch-classifier/template_net.safetensors",
+            "--input",
+            input,
+            "--output",
+            &format!("logits={}", p(out)),
+        ])
+    };
+    let (ok, _, err) = predict(&format!("x={}", p("d.npz")), "a.npy");
+    assert!(ok, "{err}");
+    let (ok, _, err) = predict(&format!("x={}:x", p("d.npz")), "b.npy");
+    assert!(ok, "{err}");
+    let logits = |f: &str| Dataset::read(Path::new(&p(f))).unwrap().arrays.into_values().next().unwrap();
+    let (a, b) = (logits("a.npy"), logits("b.npy"));
+    assert_eq!(a.shape, vec![4, 8]);
+    assert_eq!(a.data, b.data);
+    let (ok, _, err) = predict(&format!("x={}:signal", p("d.npz")), "c.npy");
+    assert!(!ok && err.contains("no array `signal`") && err.contains("label, x"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
