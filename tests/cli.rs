@@ -33,8 +33,8 @@ fn run_chirp_fit_matches_hand_written_loss_and_gradient() {
 
 #[test]
 fn run_with_npy_input_and_output() {
-    let dir = std::env::temp_dir().join(format!("gwml-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-cli-").tempdir().unwrap();
+    let dir = scratch.path();
     let src = dir.join("model.gw");
     std::fs::write(
         &src,
@@ -187,8 +187,8 @@ fn emit_adjoint_marks_the_values_mixed_precision_keeps_in_f64() {
 /// quietly (status 141, as SIGPIPE would), never with a panic.
 #[test]
 fn a_closed_stdout_ends_quietly() {
-    let dir = std::env::temp_dir().join(format!("gwml-pipe-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-pipe-").tempdir().unwrap();
+    let dir = scratch.path();
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_gwml"))
         .args(["data", "glitch", "--n", "20", "--out"])
         .arg(dir.join("g.npz"))
@@ -201,5 +201,4 @@ fn a_closed_stdout_ends_quietly() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("panicked"), "{err}");
     assert_eq!(out.status.code(), Some(141), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -241,8 +241,8 @@ fn holdout_measures_realism_against_clean_shapes() {
 
 #[test]
 fn bad_generator_inputs_are_clear_errors() {
-    let dir = std::env::temp_dir().join(format!("gwml-generator-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-generator-bad-").tempdir().unwrap();
+    let dir = scratch.path();
     let p = |name: &str| dir.join(name).display().to_string();
     let (ok, _, err) = gwml(&["generator", "fit", "--family", "chirp", "--kind", "parametric", "--out", &p("g.json")]);
     assert!(!ok && err.contains("Chirp is not one"), "{err}");
@@ -266,7 +266,6 @@ fn bad_generator_inputs_are_clear_errors() {
     assert!(!ok && err.contains("cannot read") && err.contains("missing.json"), "{err}");
     let (ok, _, err) = gwml(&["data", "bursts", "--class", "blip", "--out", &p("b.npz")]);
     assert!(!ok && err.contains("--class applies to glitch data only"), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// One learned generator fitted to the Blips and Whistles of a file of every

@@ -23,7 +23,8 @@ fn piped(input: &str) -> (bool, String) {
 /// arguments are errors that keep the session.
 #[test]
 fn qscan_of_an_expression_and_of_a_strain_file() {
-    let png = std::env::temp_dir().join(format!("gwml-repl-qscan-{}.png", std::process::id()));
+    let scratch = tempfile::Builder::new().prefix("gwml-repl-qscan-").tempdir().unwrap();
+    let png = scratch.path().join("qscan.png");
     let (ok, out) = piped(&format!(
         "grid t = times(rate: 4096 Hz, duration: 2 s)
 let x = exp(-((t - 1 s) / 7 ms)^2) * sin(2.0 * pi * 200 Hz * (t - 1 s))
@@ -59,7 +60,8 @@ grid f = frequencies(from: 20 Hz, to: 512 Hz, step: 0.25 Hz)
 /// `:save` writes into the scene.
 #[test]
 fn failed_entries_roll_back_and_definitions_can_be_forgotten() {
-    let saved = std::env::temp_dir().join(format!("gwml-repl-undef-{}.gw", std::process::id()));
+    let scratch = tempfile::Builder::new().prefix("gwml-repl-undef-").tempdir().unwrap();
+    let saved = scratch.path().join("saved.gw");
     let (ok, out) = piped(&format!(
         "param m: Msun
 1 + 1
@@ -183,8 +185,8 @@ fn errors_point_at_the_typed_text() {
     assert!(!out.contains("<repl>") && !out.contains("__value") && !out.contains("__repl"), "{out}");
     assert!(out.contains("gw> :grad cis(a) wrt a"), "{out}");
     // A loaded file's modules keep their own lines.
-    let dir = std::env::temp_dir().join(format!("gwml-repl-lines-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-repl-lines-").tempdir().unwrap();
+    let dir = scratch.path();
     let file = dir.join("m.gw");
     std::fs::write(
         &file,
@@ -194,13 +196,12 @@ fn errors_point_at_the_typed_text() {
     let (_, out) = piped(&format!(":load {}\nwave(1 Hz)\nwave(0.0)\n", file.display()));
     assert!(out.contains(&format!("╭─[ {}:6:9 ]", file.display())), "an error inside the file names its line: {out}");
     assert!(out.contains("gw> wave(0.0)\n0\n"), "{out}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn load_run_save_and_inspect() {
-    let dir = std::env::temp_dir().join(format!("gwml-repl-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-repl-").tempdir().unwrap();
+    let dir = scratch.path();
     let saved = dir.join("session.gw");
     let png = dir.join("plot.png");
     let (ok, out) = piped(&format!(
@@ -241,10 +242,10 @@ toy_psd(100 Hz)
 #[test]
 fn terminal_completion_multiline_and_ctrl_c() {
     let bin = env!("CARGO_BIN_EXE_gwml");
-    let home = std::env::temp_dir().join(format!("gwml-pty-{}", std::process::id()));
-    std::fs::create_dir_all(&home).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-pty-").tempdir().unwrap();
+    let home = scratch.path();
     let mut cmd = Command::new(bin);
-    cmd.arg("repl").env("XDG_DATA_HOME", &home).env("TERM", "xterm");
+    cmd.arg("repl").env("XDG_DATA_HOME", home).env("TERM", "xterm");
     let mut p = rexpect::session::spawn_command(cmd, Some(10_000)).expect("spawn in a pty");
     // Wait for the prompt, then a moment: the editor prints the prompt before
     // it puts the terminal in raw mode, and keys sent earlier can be lost.

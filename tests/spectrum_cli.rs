@@ -3,7 +3,6 @@
 //! loader itself).
 
 use gwml::spectrum::{Kind, Spectrum};
-use std::path::PathBuf;
 #[path = "common/cli.rs"]
 mod cli;
 
@@ -11,10 +10,9 @@ use cli::{gwml, json};
 
 const SAMPLE: &str = "fixtures/spectra/aligo_zerodet_highpower_asd.txt";
 
-fn temp_dir() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("gwml-spectrum-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch folder for one test, removed when it is dropped.
+fn temp_dir() -> tempfile::TempDir {
+    tempfile::Builder::new().prefix("gwml-spectrum-cli-").tempdir().unwrap()
 }
 
 #[test]
@@ -38,7 +36,8 @@ fn snr_with_the_sample_asd_file_matches_the_analytic_psd() {
 
 #[test]
 fn psd_text_files_bind_with_or_without_prefix_and_equal_the_loader() {
-    let dir = temp_dir();
+    let scratch = temp_dir();
+    let dir = scratch.path();
     let src = dir.join("model.gw");
     std::fs::write(
         &src,
@@ -73,7 +72,8 @@ fn psd_text_files_bind_with_or_without_prefix_and_equal_the_loader() {
 
 #[test]
 fn bad_spectrum_files_and_inputs_are_errors_with_the_line() {
-    let dir = temp_dir();
+    let scratch = temp_dir();
+    let dir = scratch.path();
     let bad = dir.join("bad.txt");
     std::fs::write(&bad, "# f asd\n10 1e-22\n20 1e-23\n15 1e-23\n").unwrap();
     let (ok, _, err) = gwml(&["run", "examples/snr_aligo.gw", "--input", &format!("psd=asd:{}", bad.display())]);

@@ -17,8 +17,8 @@ fn w1_tradeoff(extra: &[&str]) -> (bool, String, String) {
 
 #[test]
 fn tradeoff_sweeps_math_modes_and_writes_csv_json_and_png() {
-    let dir = std::env::temp_dir().join(format!("gwml-tradeoff-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-tradeoff-").tempdir().unwrap();
+    let dir = scratch.path();
     let (csv, json, png) = (dir.join("t.csv"), dir.join("t.json"), dir.join("t.png"));
     let (ok, stdout, stderr) =
         w1_tradeoff(&["--csv", csv.to_str().unwrap(), "--json", json.to_str().unwrap(), "--plot", png.to_str().unwrap()]);
@@ -43,7 +43,6 @@ fn tradeoff_sweeps_math_modes_and_writes_csv_json_and_png() {
     }
     assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 4);
     assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// `exp` of 100 needs its operand at true scale and its result (2.7e43)
@@ -51,8 +50,8 @@ fn tradeoff_sweeps_math_modes_and_writes_csv_json_and_png() {
 /// compile, that row says so, and the f64 rows are still measured.
 #[test]
 fn a_failing_setting_is_reported_in_its_row() {
-    let dir = std::env::temp_dir().join(format!("gwml-tradeoff-fail-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-tradeoff-fail-").tempdir().unwrap();
+    let dir = scratch.path();
     let file = dir.join("overflow.gw");
     std::fs::write(
         &file,
@@ -69,7 +68,6 @@ fn a_failing_setting_is_reported_in_its_row() {
     let f32_row = stdout.lines().find(|l| l.contains("| f32 |")).expect("an f32 row");
     assert!(f32_row.contains("failed:") && f32_row.contains("precision: mixed"), "{f32_row}");
     assert!(stdout.lines().any(|l| l.starts_with("| * | f64 | exact |")), "{stdout}");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// `--sweep` measures the scene's own knobs: the grid resolution `df` (the
@@ -77,8 +75,8 @@ fn a_failing_setting_is_reported_in_its_row() {
 /// loss is compared) and the template's PN order (a different waveform).
 #[test]
 fn tradeoff_sweeps_scene_knobs() {
-    let dir = std::env::temp_dir().join(format!("gwml-tradeoff-knobs-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-tradeoff-knobs-").tempdir().unwrap();
+    let dir = scratch.path();
     let json = dir.join("t.json");
     let (ok, stdout, stderr) =
         w1_tradeoff(&["--math", "exact", "--sweep", "df=0.125 Hz,0.5 Hz", "--sweep", "pn_order=6,7", "--json", json.to_str().unwrap()]);
@@ -104,7 +102,6 @@ fn tradeoff_sweeps_scene_knobs() {
     assert!(coarse["mismatch"].is_null(), "{coarse}");
     assert!(coarse["output_error"].as_f64().unwrap() > 1e-6, "{coarse}");
     assert!(coarse["grad_us"].as_f64().unwrap() < same["grad_us"].as_f64().unwrap() * 10.0);
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

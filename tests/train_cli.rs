@@ -120,8 +120,8 @@ fn glitch_data_has_eight_classes_of_whitened_segments() {
 /// listing what the file holds.
 #[test]
 fn predict_takes_an_npz_array_by_name() {
-    let dir = std::env::temp_dir().join(format!("gwml-predict-npz-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gwml-predict-npz-").tempdir().unwrap();
+    let dir = scratch.path();
     let p = |name: &str| dir.join(name).display().to_string();
     let (ok, _, err) = gwml(&["data", "glitch", "--n", "4", "--seed", "3", "--out", &p("d.npz")]);
     assert!(ok, "{err}");
@@ -149,5 +149,4 @@ fn predict_takes_an_npz_array_by_name() {
     assert_eq!(a.data, b.data);
     let (ok, _, err) = predict(&format!("x={}:signal", p("d.npz")), "c.npy");
     assert!(!ok && err.contains("no array `signal`") && err.contains("label, x"), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -203,14 +203,10 @@ pub(crate) fn write_atomically(path: &Path, write: impl FnOnce(File) -> io::Resu
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
 
-    /// A fresh, empty directory for one test.
-    fn scratch(test: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("gwml-checkpoint-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// A fresh, empty directory for one test, removed when it is dropped.
+    fn scratch(test: &str) -> tempfile::TempDir {
+        tempfile::Builder::new().prefix(&format!("gwml-checkpoint-{test}-")).tempdir().unwrap()
     }
 
     fn sample() -> Checkpoint {
@@ -232,7 +228,8 @@ mod tests {
 
     #[test]
     fn round_trip_is_bit_for_bit() {
-        let dir = scratch("round-trip");
+        let scratch = scratch("round-trip");
+        let dir = scratch.path();
         let path = dir.join("ck.safetensors");
         let ck = sample();
         save(&path, &ck).unwrap();
@@ -254,7 +251,8 @@ mod tests {
 
     #[test]
     fn truncated_and_garbage_files_are_errors() {
-        let dir = scratch("corrupt");
+        let scratch = scratch("corrupt");
+        let dir = scratch.path();
         let path = dir.join("ck.safetensors");
         save(&path, &sample()).unwrap();
         let bytes = std::fs::read(&path).unwrap();
@@ -275,7 +273,8 @@ mod tests {
 
     #[test]
     fn save_leaves_no_temp_file_and_overwrites() {
-        let dir = scratch("atomic");
+        let scratch = scratch("atomic");
+        let dir = scratch.path();
         let path = dir.join("nested").join("run").join("ck.safetensors");
         save(&path, &sample()).unwrap();
         let mut second = sample();
@@ -288,13 +287,14 @@ mod tests {
         assert_eq!(files, ["ck.safetensors"]);
         // A failed rename (the target is a directory) cleans up too.
         assert!(matches!(save(&dir.join("nested"), &second), Err(Error::Io(_))));
-        let files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        let files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(files, ["nested"]);
     }
 
     #[test]
     fn invalid_checkpoints_are_not_saved() {
-        let dir = scratch("invalid");
+        let scratch = scratch("invalid");
+        let dir = scratch.path();
         let path = dir.join("ck.safetensors");
         let t = |name: &str, shape: Vec<usize>, data: Vec<f64>| Tensor { name: name.into(), shape, data };
         let bad = [
@@ -310,12 +310,13 @@ mod tests {
             let ck = Checkpoint { tensors, metadata: BTreeMap::new() };
             assert!(matches!(save(&path, &ck), Err(Error::Bind(_))), "{ck:?}");
         }
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        assert_eq!(std::fs::read_dir(dir).unwrap().count(), 0);
     }
 
     #[test]
     fn f32_tensors_load_widened_and_other_dtypes_are_errors() {
-        let dir = scratch("f32");
+        let scratch = scratch("f32");
+        let dir = scratch.path();
         let values: [f32; 3] = [1.5, -0.25, 0.1];
         let raw: Vec<u8> = values.iter().flat_map(|x| x.to_le_bytes()).collect();
         let ints: Vec<u8> = [7i32, 8].iter().flat_map(|x| x.to_le_bytes()).collect();

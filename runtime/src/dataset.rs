@@ -290,14 +290,10 @@ pub fn write_npy(path: &Path, a: &Array) -> Result<(), Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
 
-    /// A fresh, empty directory for one test.
-    fn scratch(test: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("gwml-dataset-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// A fresh, empty directory for one test, removed when it is dropped.
+    fn scratch(test: &str) -> tempfile::TempDir {
+        tempfile::Builder::new().prefix(&format!("gwml-dataset-{test}-")).tempdir().unwrap()
     }
 
     fn sample() -> Dataset {
@@ -324,7 +320,8 @@ mod tests {
 
     #[test]
     fn a_2d_npy_round_trips() {
-        let dir = scratch("npy2d");
+        let scratch = scratch("npy2d");
+        let dir = scratch.path();
         let path = dir.join("y.npy");
         let a = Array::new(vec![2, 3], vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]).unwrap();
         write_npy(&path, &a).unwrap();
@@ -333,7 +330,8 @@ mod tests {
 
     #[test]
     fn write_read_round_trip() {
-        let dir = scratch("round-trip");
+        let scratch = scratch("round-trip");
+        let dir = scratch.path();
         let path = dir.join("sub").join("train.npz");
         let ds = sample();
         write_npz(&path, &ds).unwrap();
@@ -360,7 +358,8 @@ mod tests {
 
     #[test]
     fn zero_d_and_empty_arrays() {
-        let dir = scratch("zero-d");
+        let scratch = scratch("zero-d");
+        let dir = scratch.path();
         let path = dir.join("d.npz");
         let ds = Dataset {
             arrays: BTreeMap::from([
@@ -379,7 +378,8 @@ mod tests {
 
     #[test]
     fn reads_int64_labels_and_float32_features_from_npz() {
-        let dir = scratch("mixed");
+        let scratch = scratch("mixed");
+        let dir = scratch.path();
         let path = dir.join("mixed.npz");
         {
             let mut npz = npyz::npz::NpzWriter::create(&path).unwrap();
@@ -412,7 +412,8 @@ mod tests {
 
     #[test]
     fn inexact_integers_fortran_order_and_other_dtypes_are_errors() {
-        let dir = scratch("inexact");
+        let scratch = scratch("inexact");
+        let dir = scratch.path();
         let npy = dir.join("big.npy");
         npyz::to_file_1d(&npy, [1i64, 1 << 53]).unwrap();
         let err = Dataset::read(&npy).unwrap_err();
@@ -454,7 +455,8 @@ mod tests {
 
     #[test]
     fn garbage_and_truncated_files_are_errors() {
-        let dir = scratch("garbage");
+        let scratch = scratch("garbage");
+        let dir = scratch.path();
         let garbage = dir.join("garbage.npz");
         std::fs::write(&garbage, b"PK not really a zip archive").unwrap();
         assert!(matches!(Dataset::read(&garbage), Err(Error::Io(m)) if m.contains("garbage.npz")));

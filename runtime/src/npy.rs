@@ -108,8 +108,8 @@ mod tests {
 
     #[test]
     fn round_trips_real_and_complex() {
-        let dir = std::env::temp_dir().join(format!("gwml-npy-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::Builder::new().prefix("gwml-npy-").tempdir().unwrap();
+        let dir = scratch.path();
         let p = dir.join("r.npy");
         write_real(&p, &[1.0, -2.5]).unwrap();
         assert_eq!(read(&p).unwrap(), NpyData { values: vec![C64::new(1.0, 0.0), C64::new(-2.5, 0.0)], complex: false });
@@ -123,8 +123,8 @@ mod tests {
     /// the header's size); a wrong magic is "not a .npy file".
     #[test]
     fn truncated_and_lying_files_are_clear_errors() {
-        let dir = std::env::temp_dir().join(format!("gwml-npy-bad-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::Builder::new().prefix("gwml-npy-bad-").tempdir().unwrap();
+        let dir = scratch.path();
         let good = dir.join("good.npy");
         write_real(&good, &[1.0, 2.0]).unwrap();
         let bytes = std::fs::read(&good).unwrap();
