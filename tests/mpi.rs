@@ -10,10 +10,14 @@ use std::process::{Command, Output};
 
 const BIN: &str = env!("CARGO_BIN_EXE_gwml");
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("gwml-mpi-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A scratch folder for one test, removed when it is dropped.
+fn scratch() -> tempfile::TempDir {
+    tempfile::Builder::new().prefix("gwml-mpi-").tempdir().unwrap()
+}
+
+/// `name` in the test's scratch folder.
+fn temp(dir: &tempfile::TempDir, name: &str) -> PathBuf {
+    dir.path().join(name)
 }
 
 fn gwml(args: &[&str]) -> Output {
@@ -29,17 +33,18 @@ fn mpirun(args: &[&str]) -> Command {
     c
 }
 
-fn strain(name: &str) -> String {
-    let path = temp(name).display().to_string();
+fn strain(dir: &tempfile::TempDir, name: &str) -> String {
+    let path = temp(dir, name).display().to_string();
     gwml(&["data", "strain", "--duration", "224", "--seed", "21", "--glitch-rate", "10", "--out", &path]);
     path
 }
 
 #[test]
 fn a_scan_on_two_ranks_writes_what_one_process_writes() {
-    let file = strain("two.hdf5");
-    let one = temp("one.csv").display().to_string();
-    let two = temp("two.csv").display().to_string();
+    let dir = scratch();
+    let file = strain(&dir, "two.hdf5");
+    let one = temp(&dir, "one.csv").display().to_string();
+    let two = temp(&dir, "two.csv").display().to_string();
     gwml(&["scan", &file, "--block", "64", "--threads", "1", "--out", &one]);
     let out = mpirun(&["scan", &file, "--block", "64", "--threads", "1", "--mpi", "--out", &two]).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -53,9 +58,10 @@ fn a_scan_on_two_ranks_writes_what_one_process_writes() {
 
 #[test]
 fn a_killed_rank_fails_the_job_and_the_rerun_does_only_the_missing_blocks() {
-    let file = strain("kill.hdf5");
-    let one = temp("kill-one.csv").display().to_string();
-    let out = temp("kill.csv").display().to_string();
+    let dir = scratch();
+    let file = strain(&dir, "kill.hdf5");
+    let one = temp(&dir, "kill-one.csv").display().to_string();
+    let out = temp(&dir, "kill.csv").display().to_string();
     gwml(&["scan", &file, "--no-classify", "--block", "64", "--threads", "1", "--out", &one]);
     let args = ["scan", &file, "--no-classify", "--block", "64", "--threads", "1", "--mpi", "--out", &out];
     let job = mpirun(&args).stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap();
@@ -101,13 +107,14 @@ fn curve(path: &Path) -> Vec<Vec<f64>> {
 
 #[test]
 fn training_on_two_ranks_follows_one_process() {
-    let train = temp("train.npz").display().to_string();
-    let val = temp("val.npz").display().to_string();
+    let dir = scratch();
+    let train = temp(&dir, "train.npz").display().to_string();
+    let val = temp(&dir, "val.npz").display().to_string();
     gwml(&["data", "bursts", "--n", "96", "--seed", "3", "--out", &train]);
     gwml(&["data", "bursts", "--n", "32", "--seed", "4", "--out", &val]);
     let run = |tag: &str, mpi: bool| -> (Vec<Vec<f64>>, Vec<f64>) {
-        let history = temp(&format!("{tag}.csv"));
-        let ck = temp(&format!("ck-{tag}"));
+        let history = temp(&dir, &format!("{tag}.csv"));
+        let ck = temp(&dir, &format!("ck-{tag}"));
         let (h, c) = (history.display().to_string(), ck.display().to_string());
         let args = [
             "train",

@@ -14,10 +14,14 @@ fn fixture(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/strain").join(name).display().to_string()
 }
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("gwml-scan-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A scratch folder for one test, removed when it is dropped.
+fn scratch() -> tempfile::TempDir {
+    tempfile::Builder::new().prefix("gwml-scan-cli-").tempdir().unwrap()
+}
+
+/// `name` in the test's scratch folder.
+fn temp(dir: &tempfile::TempDir, name: &str) -> PathBuf {
+    dir.path().join(name)
 }
 
 /// Exit status 1 and one line on standard error containing `needle`.
@@ -28,8 +32,8 @@ fn fails_with(out: &Output, needle: &str) {
     assert!(err.contains(needle), "{err:?} lacks {needle:?}");
 }
 
-fn strain(name: &str, args: &[&str]) -> String {
-    let path = temp(name).display().to_string();
+fn strain(dir: &tempfile::TempDir, name: &str, args: &[&str]) -> String {
+    let path = temp(dir, name).display().to_string();
     let mut all = vec!["data", "strain", "--out", &path];
     all.extend_from_slice(args);
     let out = gwml(&all);
@@ -39,7 +43,8 @@ fn strain(name: &str, args: &[&str]) -> String {
 
 #[test]
 fn broken_files_are_one_line_errors() {
-    let csv = temp("t.csv").display().to_string();
+    let dir = scratch();
+    let csv = temp(&dir, "t.csv").display().to_string();
     for (file, needle) in [
         ("gwosc_truncated.hdf5", "truncated"),
         ("not_hdf5.hdf5", "not an HDF5 file"),
@@ -55,17 +60,19 @@ fn broken_files_are_one_line_errors() {
 
 #[test]
 fn a_sample_rate_the_classifier_was_not_trained_for_is_an_error() {
-    let csv = temp("rate.csv").display().to_string();
+    let dir = scratch();
+    let csv = temp(&dir, "rate.csv").display().to_string();
     // 512 Hz against the shipped classifier's 4096 Hz.
     fails_with(&gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--out", &csv]), "expects 4096 Hz");
 }
 
 #[test]
 fn missing_data_and_file_gaps_are_reported_skips_overlaps_are_errors() {
-    let a = strain("a.hdf5", &["--duration", "48", "--seed", "1", "--gap", "20:4", "--gps-start", "1000000000"]);
-    let b = strain("b.hdf5", &["--duration", "48", "--seed", "2", "--gps-start", "1000000050"]);
-    let c = strain("c.hdf5", &["--duration", "48", "--seed", "3", "--gps-start", "1000000040"]);
-    let json = temp("gaps.json").display().to_string();
+    let dir = scratch();
+    let a = strain(&dir, "a.hdf5", &["--duration", "48", "--seed", "1", "--gap", "20:4", "--gps-start", "1000000000"]);
+    let b = strain(&dir, "b.hdf5", &["--duration", "48", "--seed", "2", "--gps-start", "1000000050"]);
+    let c = strain(&dir, "c.hdf5", &["--duration", "48", "--seed", "3", "--gps-start", "1000000040"]);
+    let json = temp(&dir, "gaps.json").display().to_string();
     let out = gwml(&["scan", &a, &b, "--no-classify", "--out", &json]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -79,8 +86,8 @@ fn missing_data_and_file_gaps_are_reported_skips_overlaps_are_errors() {
     fails_with(&gwml(&["scan", &a, &c, "--no-classify", "--out", &json]), "overlaps");
 
     // All samples missing: nothing scanned, nothing written but the header.
-    let empty = strain("empty.hdf5", &["--duration", "32", "--gap", "0:32", "--glitch-rate", "0"]);
-    let csv = temp("empty.csv").display().to_string();
+    let empty = strain(&dir, "empty.hdf5", &["--duration", "32", "--gap", "0:32", "--glitch-rate", "0"]);
+    let csv = temp(&dir, "empty.csv").display().to_string();
     let out = gwml(&["scan", &empty, "--no-classify", "--out", &csv]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stdout).contains("scanned 0 s"));
@@ -89,14 +96,15 @@ fn missing_data_and_file_gaps_are_reported_skips_overlaps_are_errors() {
 
 #[test]
 fn bad_arguments_are_one_line_errors() {
-    let out = temp("x.hdf5").display().to_string();
+    let dir = scratch();
+    let out = temp(&dir, "x.hdf5").display().to_string();
     fails_with(&gwml(&["data", "strain", "--duration", "10", "--out", &out]), "--duration 10");
     fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--gap", "60:10"]), "--gap 60:10");
     fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--snr", "30..8"]), "SNR");
     fails_with(&gwml(&["data", "strain", "--duration", "64", "--out", &out, "--snr", "loud"]), "expected a range LO..HI, got `loud`");
-    let csv = temp("bad.txt").display().to_string();
+    let csv = temp(&dir, "bad.txt").display().to_string();
     fails_with(&gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--out", &csv]), "write .csv or .json");
-    let triggers = temp("sig.csv").display().to_string();
+    let triggers = temp(&dir, "sig.csv").display().to_string();
     fails_with(
         &gwml(&["scan", &fixture("gwosc_contiguous.hdf5"), "--out", &triggers, "--min-significance", "0"]),
         "--min-significance must be positive and finite, got 0",
@@ -108,9 +116,10 @@ fn bad_arguments_are_one_line_errors() {
 /// whose truth rows carry no formula params.
 #[test]
 fn per_class_snr_and_real_fit_shapes() {
-    let truth = temp("class_truth.csv").display().to_string();
+    let dir = scratch();
+    let truth = temp(&dir, "class_truth.csv").display().to_string();
     let args = ["--duration", "256", "--glitch-rate", "20", "--classes", "koi-fish,blip", "--snr", "class", "--real-fits"];
-    strain("class.hdf5", &[&args[..], &["--truth", &truth]].concat());
+    strain(&dir, "class.hdf5", &[&args[..], &["--truth", &truth]].concat());
     let text = std::fs::read_to_string(&truth).unwrap();
     let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
     let f0 = header.iter().position(|h| *h == "f0").expect("an f0 column");
@@ -126,9 +135,10 @@ fn per_class_snr_and_real_fit_shapes() {
 
 #[test]
 fn scanning_in_small_blocks_finds_what_one_block_finds() {
-    let file = strain("blocks.hdf5", &["--duration", "200", "--seed", "9", "--glitch-rate", "12", "--gap", "120:3"]);
+    let dir = scratch();
+    let file = strain(&dir, "blocks.hdf5", &["--duration", "200", "--seed", "9", "--glitch-rate", "12", "--gap", "120:3"]);
     let run = |block: &str, out: &str| {
-        let path = temp(out).display().to_string();
+        let path = temp(&dir, out).display().to_string();
         let o = gwml(&["scan", &file, "--no-classify", "--block", block, "--out", &path]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let stdout = String::from_utf8_lossy(&o.stdout).to_string();
@@ -169,9 +179,10 @@ fn scanning_in_small_blocks_finds_what_one_block_finds() {
 /// refused.
 #[test]
 fn a_killed_scan_resumes_with_the_missing_blocks_only() {
-    let file = strain("resume.hdf5", &["--duration", "224", "--seed", "4", "--glitch-rate", "10"]);
-    let whole = temp("resume-whole.csv").display().to_string();
-    let out = temp("resume.csv").display().to_string();
+    let dir = scratch();
+    let file = strain(&dir, "resume.hdf5", &["--duration", "224", "--seed", "4", "--glitch-rate", "10"]);
+    let whole = temp(&dir, "resume-whole.csv").display().to_string();
+    let out = temp(&dir, "resume.csv").display().to_string();
     let args = |path: &str| -> Vec<String> {
         ["scan", &file, "--no-classify", "--block", "64", "--threads", "1", "--out", path].iter().map(|s| s.to_string()).collect()
     };
@@ -213,7 +224,8 @@ fn mpi_needs_the_feature() {
 /// glitch, the PNG is written, and bad times are one-line errors.
 #[test]
 fn the_loudest_tile_is_on_the_glitch_and_bad_times_are_errors() {
-    let (file, truth) = (temp("s.hdf5"), temp("truth.csv"));
+    let dir = scratch();
+    let (file, truth) = (temp(&dir, "s.hdf5"), temp(&dir, "truth.csv"));
     let (file, truth) = (file.display().to_string(), truth.display().to_string());
     let out = gwml(&[
         "data",
@@ -249,7 +261,7 @@ fn the_loudest_tile_is_on_the_glitch_and_bad_times_are_errors() {
         })
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .expect("an injection between 20 and 80 s");
-    let png = temp("q.png").display().to_string();
+    let png = temp(&dir, "q.png").display().to_string();
     let out = gwml(&["qscan", &file, "--gps", &gps.to_string(), "--out", &png]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -272,8 +284,8 @@ fn the_loudest_tile_is_on_the_glitch_and_bad_times_are_errors() {
     // `gwml explain` of the same glitch: every family fitted, the JSON
     // complete, the injected family best (a Koi Fish may be called a Blip:
     // its whitened head is too faint to tell at this SNR).
-    let json = temp("explain.json").display().to_string();
-    let png = temp("explain.png").display().to_string();
+    let json = temp(&dir, "explain.json").display().to_string();
+    let png = temp(&dir, "explain.png").display().to_string();
     let out = gwml(&["explain", &file, "--gps", &gps.to_string(), "--json", &json, "--plot", &png]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -294,7 +306,7 @@ fn the_loudest_tile_is_on_the_glitch_and_bad_times_are_errors() {
     fails_with(&gwml(&["explain", &file, "--gps", "1264000001"]), "too near an end");
     fails_with(&gwml(&["explain", &file, "--gps", &gps.to_string(), "--window", "40"]), "--window 40");
     // `gwml scan --explain` writes the best family, Bayes factors and params into each row.
-    let csv = temp("explained.csv").display().to_string();
+    let csv = temp(&dir, "explained.csv").display().to_string();
     let out = gwml(&["scan", &file, "--explain", "--out", &csv]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = std::fs::read_to_string(&csv).unwrap();
