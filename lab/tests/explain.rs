@@ -234,10 +234,8 @@ fn loud_tomtes_are_fitted_on_their_own_ridge() {
     let wanted = [27, 47, 49, 54];
     let (mut seen, mut verdicts) = (0, Vec::new());
     for stretch in 0.. {
-        let (series, injections) = simulate(&campaign_strain(&o, tomte, stretch)).unwrap();
-        let options = WhitenOptions { taper: 2.0, band, classifier_band: band };
-        let w = whiten_series(&whitener, &series, 4.0, &options).unwrap();
-        for injection in injections.iter().filter(|i| i.snr >= MIN_SNR) {
+        let (w, injections) = campaign_stretch(&o, tomte, stretch, &whitener, band).unwrap();
+        for injection in &injections {
             if wanted.contains(&seen) {
                 let (_, _, e) = explain_at(&explainer, &w, injection.gps_time, band).unwrap();
                 verdicts.push((injection.snr, e.best().map_or("None", |f| f.family.label)));

@@ -9,7 +9,7 @@ use super::{explain_at, ExplainOptions, Explainer, Explanation, Seed};
 use crate::strain::{simulate, Injection, NoiseCurve, StrainOptions, SAMPLE_RATE};
 use crate::synth::GLITCH_CLASSES;
 use gwml_runtime::Error;
-use gwml_strain::whitening::{whiten_series, WhitenOptions, Whitener};
+use gwml_strain::whitening::{whiten_series, WhitenOptions, Whitened, Whitener};
 use std::time::Instant;
 
 /// What the campaign injects.
@@ -137,6 +137,22 @@ pub fn campaign_strain(o: &CampaignOptions, class: usize, stretch: u64) -> Strai
     }
 }
 
+/// Stretch `stretch` of `class`'s campaign strain whitened over `band` by
+/// its own Welch PSD, with the injections the campaign explains in it
+/// (those of at least [`MIN_SNR`], unless the options fix the SNR).
+pub fn campaign_stretch(
+    o: &CampaignOptions,
+    class: usize,
+    stretch: u64,
+    whitener: &Whitener,
+    band: (f64, f64),
+) -> Result<(Whitened, Vec<Injection>), Error> {
+    let (series, injections) = simulate(&campaign_strain(o, class, stretch))?;
+    let options = WhitenOptions { taper: 2.0, band, classifier_band: band };
+    let w = whiten_series(whitener, &series, 4.0, &options).map_err(|e| Error::Bind(e.to_string()))?;
+    Ok((w, injections.into_iter().filter(|i| o.snr.is_some() || i.snr >= MIN_SNR).collect()))
+}
+
 /// Runs the campaign: for each class, stretches of strain with that class
 /// injected ([`CAMPAIGN_RATE`] a minute, at least 2 s apart; the seed is the
 /// campaign's, the class's and the stretch's, so a class's injections do
@@ -157,12 +173,8 @@ pub fn run_campaign(o: &CampaignOptions, mut progress: impl FnMut(&Outcome)) -> 
             if explained == o.per_class {
                 break;
             }
-            let strain = campaign_strain(o, class, stretch);
-            let (series, injections) = simulate(&strain)?;
-            let options = WhitenOptions { taper: 2.0, band, classifier_band: band };
-            let w = whiten_series(&whitener, &series, 4.0, &options).map_err(|e| Error::Bind(e.to_string()))?;
-            let loud_enough = |i: &Injection| o.snr.is_some() || i.snr >= MIN_SNR;
-            for injection in injections.into_iter().filter(loud_enough).take(o.per_class - explained) {
+            let (w, injections) = campaign_stretch(o, class, stretch, &whitener, band)?;
+            for injection in injections.into_iter().take(o.per_class - explained) {
                 let start = Instant::now();
                 let (_, seed, explanation) = explain_at(&explainer, &w, injection.gps_time, band).map_err(Error::Bind)?;
                 let outcome = Outcome { injection, seed, explanation, seconds: start.elapsed().as_secs_f64() };
