@@ -382,6 +382,17 @@ fn conv1d_kernel_longer_than_its_input_and_bad_channels() {
 }
 
 #[test]
+fn conv2d_of_a_time_series_and_a_kernel_taller_than_the_image() {
+    let err = fail(&learned_scene(
+        "  weight k: [2, 1, 3, 3] = he\n  weight k2: [1, 1, 5, 2] = he\n  sum(conv2d(x, k)) + sum(conv2d(reshape(x, 4, 4), k2))",
+    ));
+    assert_reports(&err, "`conv2d` needs an image [channels, rows, columns] or [rows, columns], but this has shape [16]");
+    assert_helps(&err, "reshape(x, c, h, w)");
+    assert_reports(&err, "the kernel spans 5 rows but the input has 4 (with padding)");
+    insta::assert_snapshot!(err.render(false));
+}
+
+#[test]
 fn stack_of_arrays_of_different_lengths() {
     let err = fail(&learned_scene("  sum(stack(x, max_pool(x, 2)))"));
     assert_reports(&err, "`stack` needs arrays of the same length, but this one has 8 positions");

@@ -176,6 +176,54 @@ fn pooling_layers_have_correct_gradients() {
     }
 }
 
+/// `conv2d` with stride, padding and dilation on one- and two-channel
+/// images, then 2-D max and average pooling, as a Gravity Spy-style
+/// network does on Q-scan images: weight gradients against finite
+/// differences, the JIT against the interpreter.
+#[test]
+fn two_dimensional_convolutions_and_pooling_have_correct_gradients() {
+    for (conv, pool) in [
+        ("stride: 1, padding: 1", "max_pool2d(h, 2)"),
+        ("stride: 2, padding: 2, dilation: 2", "avg_pool2d(h, 2, stride: 1)"),
+        ("padding: 0", "max_pool2d(h, window: 3, stride: 2)"),
+    ] {
+        let src = format!(
+            "learned net(x) {{\n    weight k1: [3, 2, 3, 2] = he(seed: 1)\n    weight b1: [3] = normal(std: 0.2, seed: 2)\n    \
+             weight k2: [2, 3, 2, 2] = glorot(seed: 3)\n    \
+             let img = reshape(stack(x, x * x), 2, 7, 9)\n    \
+             let h = tanh(conv2d(img, k1, b1, {conv}))\n    let p = {pool}\n    \
+             let y = conv2d(p, k2, padding: 1)\n    sum(y * y) + sum(tanh(y))\n}}\n\
+             scene s {{\n  grid t = times(rate: 63 Hz, duration: 1 s)\n  input x: real[t] = 0.0\n  output out = net(x)\n  grad out wrt net\n}}\n"
+        );
+        let data = [("x", pseudo_random(63, 12))];
+        check_weight_gradients(&src, &data, "out");
+        check_against_interpreter(&src, &data);
+    }
+}
+
+/// `conv2d` of a one-channel image `[h, w]` is the sum of its kernel times
+/// the image under it; `max_pool2d` takes each square's largest value.
+#[test]
+fn conv2d_and_max_pool2d_have_pytorch_values() {
+    let src = "learned net(x) {\n    weight k: [1, 1, 2, 2] = ones\n    conv2d(reshape(x, 3, 4), k)\n}\n\
+               scene s {\n  grid t = index(12)\n  input x: real[t] = 0.0\n  output y = net(x)\n  \
+               output m = max_pool2d(reshape(x, 1, 3, 4), 2, stride: 1)\n}\n";
+    let model = Model::from_source("conv2d.gw", src).unwrap_or_else(|e| panic!("{e}"));
+    let scene = model.scene(None).unwrap();
+    let mut run = scene.bind();
+    // The image [[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11]].
+    let x: Vec<f64> = (0..12).map(f64::from).collect();
+    run.input_real("x", &x).unwrap();
+    let out = run.forward().unwrap();
+    let real = |name: &str| match out.value(name).unwrap() {
+        Value::RealArray(v) => v.clone(),
+        v => panic!("{name} is {v:?}"),
+    };
+    // Each 2 × 2 square's sum: [[10, 14, 18], [26, 30, 34]] (a 2 × 3 output).
+    assert_eq!(real("y"), vec![10.0, 14.0, 18.0, 26.0, 30.0, 34.0]);
+    assert_eq!(real("m"), vec![5.0, 6.0, 7.0, 9.0, 10.0, 11.0]);
+}
+
 /// `stack` puts a [2, n] convolution, a time series and a one-channel
 /// convolution one above the other ([4, n]) for a second convolution.
 #[test]

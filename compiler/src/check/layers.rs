@@ -1,6 +1,6 @@
 //! Checking `learned` components: weight declarations (shapes and
-//! initialisers) and the layer builtins (`dense`, `conv1d`, pooling), which
-//! lower to [`TensorOp`] library calls.
+//! initialisers) and the layer builtins (`dense`, the convolutions and
+//! pooling of `convs`, reshaping), which lower to [`TensorOp`] library calls.
 //!
 //! Arrays of layers live on tensor grids: index grids whose `dims` give the
 //! row-major shape (`[channels, positions]` for convolutions). A real array
@@ -12,7 +12,7 @@ use crate::front::source::{Span, Spanned};
 use crate::front::syntax::ast::{self, Expr, ExprKind, ModuleDef, WeightDecl};
 use crate::front::units::Dim;
 use crate::ir::builder::Builder;
-use crate::ir::{self, Conv, Elem, GridId, InputRole, Op, Pool, Rows, Shape, TensorOp, Ty, Value};
+use crate::ir::{self, Elem, GridId, InputRole, Op, Rows, Shape, TensorOp, Ty};
 use num_complex::Complex64 as C64;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal, Uniform};
@@ -22,9 +22,12 @@ pub const LAYERS: &[&str] = &[
     "dense",
     "conv1d",
     "conv_transpose1d",
+    "conv2d",
     "upsample",
     "max_pool",
     "avg_pool",
+    "max_pool2d",
+    "avg_pool2d",
     "global_avg_pool",
     "dropout",
     "randn",
@@ -262,7 +265,7 @@ impl<'a> Checker<'a> {
         }
     }
 
-    /// `dense`, `conv1d` and the pooling layers.
+    /// The layer builtins: arguments checked, then lowered here or in `convs`.
     pub(super) fn layer_call(
         &mut self,
         b: &mut Builder,
@@ -274,9 +277,9 @@ impl<'a> Checker<'a> {
         let name = callee.node.as_str();
         let (named, positional): (Vec<&'a ast::Arg>, Vec<&'a ast::Arg>) = args.iter().partition(|a| a.name.is_some());
         let allowed: &[&str] = match name {
-            "conv1d" => &["stride", "padding", "dilation"],
+            "conv1d" | "conv2d" => &["stride", "padding", "dilation"],
             "conv_transpose1d" => &["stride", "padding", "output_padding", "dilation"],
-            "max_pool" | "avg_pool" => &["window", "stride"],
+            "max_pool" | "avg_pool" | "max_pool2d" | "avg_pool2d" => &["window", "stride"],
             _ => &[],
         };
         let mut opts: Vec<(&str, u32)> = Vec::new();
@@ -299,11 +302,11 @@ impl<'a> Checker<'a> {
         }
         let opt = |k: &str| opts.iter().find(|(n, _)| *n == k).map(|(_, v)| *v);
         let (lo, hi) = match name {
-            "dense" | "conv1d" | "conv_transpose1d" => (2, 3),
+            "dense" | "conv1d" | "conv2d" | "conv_transpose1d" => (2, 3),
             "upsample" => (2, 2),
             "reshape" => (2, 4),
             "slice" => (3, 3),
-            "max_pool" | "avg_pool" => (if opt("window").is_some() { 1 } else { 2 }, 2),
+            "max_pool" | "avg_pool" | "max_pool2d" | "avg_pool2d" => (if opt("window").is_some() { 1 } else { 2 }, 2),
             "dropout" => (2, 2),
             "stack" => (1, usize::MAX),
             _ => (1, 1),
@@ -335,11 +338,12 @@ impl<'a> Checker<'a> {
             let x = self.layer_operand(b, (tv, positional[0].value.span), name)?;
             return self.reshape(b, scope, x, &positional[1..]);
         }
-        let window_arg = if matches!(name, "max_pool" | "avg_pool" | "dropout" | "upsample") && positional.len() == 2 {
-            positional.get(1).copied()
-        } else {
-            None
-        };
+        let window_arg =
+            if matches!(name, "max_pool" | "avg_pool" | "max_pool2d" | "avg_pool2d" | "dropout" | "upsample") && positional.len() == 2 {
+                positional.get(1).copied()
+            } else {
+                None
+            };
         let array_args = if window_arg.is_some() || name == "slice" { &positional[..1] } else { &positional[..] };
         let mut vals = Vec::new();
         for a in array_args {
@@ -349,9 +353,9 @@ impl<'a> Checker<'a> {
         let x = vals[0];
         match name {
             "dense" => self.dense(b, x, vals[1], vals.get(2).copied()),
-            "conv1d" => {
+            "conv1d" | "conv2d" => {
                 let conv = (opt("stride").unwrap_or(1), opt("padding").unwrap_or(0), opt("dilation").unwrap_or(1));
-                self.conv1d(b, x, vals[1], vals.get(2).copied(), conv)
+                self.conv(b, x, vals[1], vals.get(2).copied(), conv, if name == "conv1d" { 1 } else { 2 })
             }
             "conv_transpose1d" => {
                 let o = |k| opt(k).unwrap_or(if k == "stride" || k == "dilation" { 1 } else { 0 });
@@ -372,7 +376,7 @@ impl<'a> Checker<'a> {
                 let rate_arg = window_arg.expect("dropout takes two arguments");
                 self.dropout(b, x, rate_arg)
             }
-            "max_pool" | "avg_pool" => {
+            "max_pool" | "avg_pool" | "max_pool2d" | "avg_pool2d" => {
                 let window = match (window_arg, opt("window")) {
                     (Some(a), None) => self.const_count(&a.value, "a pooling window", 1)?,
                     (None, Some(w)) => w,
@@ -384,7 +388,8 @@ impl<'a> Checker<'a> {
                     }
                 };
                 let stride = opt("stride").unwrap_or(window);
-                self.pool(b, x, window, stride, name == "max_pool")
+                let rank = if name.ends_with("2d") { 2 } else { 1 };
+                self.pool(b, x, (window, stride), name.starts_with("max"), rank)
             }
             _ => {
                 let (c, n) = channels(b, x.0);
@@ -420,7 +425,7 @@ impl<'a> Checker<'a> {
     }
 
     /// Checks that `v` has shape `want` (a weight or bias).
-    fn expect_dims(&mut self, b: &Builder, (tv, span): (Tv, Span), want: &[usize], what: &str, layer: &str) -> Option<()> {
+    pub(super) fn expect_dims(&mut self, b: &Builder, (tv, span): (Tv, Span), want: &[usize], what: &str, layer: &str) -> Option<()> {
         let have = dims_of(b, tv);
         if have == want {
             return Some(());
@@ -449,116 +454,6 @@ impl<'a> Checker<'a> {
             None => y,
         };
         Some(Tv { v, dim: Dim::NONE })
-    }
-
-    fn conv1d(
-        &mut self,
-        b: &mut Builder,
-        x: (Tv, Span),
-        w: (Tv, Span),
-        bias: Option<(Tv, Span)>,
-        (stride, padding, dilation): (u32, u32, u32),
-    ) -> Option<Tv> {
-        let (c_in, len_in) = channels(b, x.0);
-        let wd = dims_of(b, w.0);
-        if wd.len() != 3 || wd[1] != c_in as usize {
-            let c_out = wd.first().copied().unwrap_or(1);
-            let k = wd.get(2).copied().unwrap_or(1);
-            self.expect_dims(b, w, &[c_out, c_in as usize, k], "the weight", "conv1d")?;
-        }
-        let (c_out, kernel) = (wd[0] as u32, wd[2] as u32);
-        if let Some(bias) = bias {
-            self.expect_dims(b, bias, &[c_out as usize], "the bias", "conv1d")?;
-        }
-        let span = dilation as u64 * (kernel as u64 - 1) + 1;
-        let padded = len_in as u64 + 2 * padding as u64;
-        if span > padded {
-            self.error(
-                Diagnostic::error(w.1, format!("the kernel spans {span} samples but the input has {padded} (with padding)"))
-                    .with_help("use a shorter kernel, a smaller dilation or more padding"),
-            );
-            return None;
-        }
-        let len_out = ((padded - span) / stride as u64 + 1) as u32;
-        let conv = Conv { c_in, c_out, len_in, len_out, kernel, stride, padding, dilation };
-        let grid = Self::tensor_grid(b, &[c_out as usize, len_out as usize]);
-        let y = b.emit(Op::Tensor(TensorOp::Conv(conv), grid, x.0.v, w.0.v));
-        Some(Tv { v: self.add_channel_bias(b, y, bias, (c_out, len_out), grid), dim: Dim::NONE })
-    }
-
-    /// `y + bias` with one bias per channel of `y` `[channels, positions]`.
-    fn add_channel_bias(&self, b: &mut Builder, y: Value, bias: Option<(Tv, Span)>, (rows, cols): (u32, u32), grid: GridId) -> Value {
-        match bias {
-            Some(bias) => {
-                let spread = b.emit(Op::Tensor(TensorOp::Spread { rows, cols }, grid, bias.0.v, bias.0.v));
-                b.add(y, spread)
-            }
-            None => y,
-        }
-    }
-
-    /// `conv_transpose1d(x, w, b)`: the transpose of `conv1d` in its input,
-    /// with PyTorch's layout: x `[c_in, n]`, w `[c_in, c_out, k]`, output
-    /// `[c_out, (n − 1)·stride − 2·padding + dilation·(k − 1) + output_padding + 1]`.
-    /// Lowers to `ConvBackData` of the convolution it transposes.
-    fn conv_transpose1d(
-        &mut self,
-        b: &mut Builder,
-        x: (Tv, Span),
-        w: (Tv, Span),
-        bias: Option<(Tv, Span)>,
-        (stride, padding, output_padding, dilation): (u32, u32, u32, u32),
-        at: Span,
-    ) -> Option<Tv> {
-        let (c_in, len_in) = channels(b, x.0);
-        let wd = dims_of(b, w.0);
-        if wd.len() != 3 || wd[0] != c_in as usize {
-            let c_out = wd.get(1).copied().unwrap_or(1);
-            let k = wd.get(2).copied().unwrap_or(1);
-            self.expect_dims(b, w, &[c_in as usize, c_out, k], "the weight", "conv_transpose1d")?;
-        }
-        let (c_out, kernel) = (wd[1] as u32, wd[2] as u32);
-        if let Some(bias) = bias {
-            self.expect_dims(b, bias, &[c_out as usize], "the bias", "conv_transpose1d")?;
-        }
-        if output_padding >= stride.max(dilation) {
-            self.error(
-                Diagnostic::error(at, format!("`output_padding` ({output_padding}) must be smaller than the stride or the dilation"))
-                    .with_help("it only picks among the output lengths a strided convolution maps to the same input length"),
-            );
-            return None;
-        }
-        let full = (len_in as i64 - 1) * stride as i64 + dilation as i64 * (kernel as i64 - 1) + output_padding as i64 + 1;
-        let len_out = full - 2 * padding as i64;
-        if !(1..1 << 31).contains(&len_out) {
-            self.error(
-                Diagnostic::error(at, format!("the output would have {len_out} positions: the padding ({padding}) is too large"))
-                    .with_help("use less padding, a longer kernel or a larger stride"),
-            );
-            return None;
-        }
-        let len_out = len_out as u32;
-        // The convolution this op transposes maps `len_out` positions of
-        // `c_out` channels to the `len_in` positions of `x`'s `c_in`.
-        let conv = Conv { c_in: c_out, c_out: c_in, len_in: len_out, len_out: len_in, kernel, stride, padding, dilation };
-        let grid = Self::tensor_grid(b, &[c_out as usize, len_out as usize]);
-        let y = b.emit(Op::Tensor(TensorOp::ConvBackData(conv), grid, x.0.v, w.0.v));
-        Some(Tv { v: self.add_channel_bias(b, y, bias, (c_out, len_out), grid), dim: Dim::NONE })
-    }
-
-    /// `upsample(x, factor)`: each position of x `[c, n]` repeated `factor`
-    /// times, `[c, n·factor]` (nearest neighbour); the transpose of a mean
-    /// over windows of `factor`, times `factor`.
-    fn upsample(&mut self, b: &mut Builder, x: (Tv, Span), factor: u32) -> Option<Tv> {
-        let (channels, n) = channels(b, x.0);
-        let Some(len) = n.checked_mul(factor).filter(|l| *l < 1 << 31) else {
-            self.error(Diagnostic::error(x.1, format!("upsampling {n} positions by {factor} is too long")));
-            return None;
-        };
-        let p = Pool { channels, len_in: len, len_out: n, window: factor, stride: factor };
-        let grid = Self::tensor_grid(b, &[channels as usize, len as usize]);
-        let spread = b.emit(Op::Tensor(TensorOp::PoolAvgBack(p), grid, x.0.v, x.0.v));
-        Some(Tv { v: b.scale(spread, factor as f64), dim: Dim::NONE })
     }
 
     /// `reshape(x, g)`: the elements of x, in order, as an array over grid
@@ -718,26 +613,10 @@ impl<'a> Checker<'a> {
         });
         Some(Tv { v: b.push(Op::Input(b.func.inputs.len() as u32 - 1)), dim: Dim::NONE })
     }
-
-    fn pool(&mut self, b: &mut Builder, x: (Tv, Span), window: u32, stride: u32, max: bool) -> Option<Tv> {
-        let (channels, len_in) = channels(b, x.0);
-        if window > len_in {
-            self.error(
-                Diagnostic::error(x.1, format!("the pooling window ({window}) is longer than the input ({len_in} positions)"))
-                    .with_help("use a smaller window"),
-            );
-            return None;
-        }
-        let len_out = (len_in - window) / stride + 1;
-        let p = Pool { channels, len_in, len_out, window, stride };
-        let grid = Self::tensor_grid(b, &[channels as usize, len_out as usize]);
-        let op = if max { TensorOp::PoolPick(p) } else { TensorOp::PoolAvg(p) };
-        Some(Tv { v: b.emit(Op::Tensor(op, grid, x.0.v, x.0.v)), dim: Dim::NONE })
-    }
 }
 
 /// The tensor dims of an array (`[len]` for a physical grid).
-fn dims_of(b: &Builder, tv: Tv) -> Vec<usize> {
+pub(super) fn dims_of(b: &Builder, tv: Tv) -> Vec<usize> {
     match b.ty(tv.v).shape {
         Shape::Grid(g) => b.func.grids[g.0 as usize].dims.clone(),
         Shape::Scalar => vec![],
@@ -746,7 +625,7 @@ fn dims_of(b: &Builder, tv: Tv) -> Vec<usize> {
 
 /// `(channels, positions)` of an array: `[c, n]` tensors, and anything
 /// else as one channel of all its elements.
-fn channels(b: &Builder, tv: Tv) -> (u32, u32) {
+pub(super) fn channels(b: &Builder, tv: Tv) -> (u32, u32) {
     match dims_of(b, tv).as_slice() {
         [c, n] => (*c as u32, *n as u32),
         d => (1, d.iter().product::<usize>() as u32),

@@ -14,7 +14,7 @@
 //! settings, knobs, gradient requests), `grids`, `decls` (params, inputs,
 //! annotations, constant expressions), `expr` (names and operators),
 //! `calls` (builtins, transforms, module instantiation), `layers`
-//! (`learned` components).
+//! (`learned` components) and `convs` (their convolutions and pooling).
 
 use crate::front::diagnostics::{did_you_mean, Diagnostic};
 use crate::front::source::{Span, Spanned};
@@ -27,6 +27,7 @@ use std::collections::{HashMap, HashSet};
 
 mod calls;
 mod catalogue;
+mod convs;
 mod decls;
 mod expr;
 mod grids;

@@ -35,12 +35,41 @@ impl Function {
             Op::Tensor(t, _, a, b) => {
                 let sizes = match t {
                     TensorOp::MatVec { m, k } | TensorOp::MatTVec { m, k } | TensorOp::Outer { m, k } => format!("{m}x{k}"),
-                    TensorOp::Conv(c) | TensorOp::ConvBackData(c) | TensorOp::ConvBackWeight(c) => format!(
+                    TensorOp::Conv(c) | TensorOp::ConvBackData(c) | TensorOp::ConvBackWeight(c) if c.rows == Axis::ONE => format!(
                         "{}x{} -> {}x{}, kernel {}, stride {}, padding {}, dilation {}",
                         c.c_in, c.len_in, c.c_out, c.len_out, c.kernel, c.stride, c.padding, c.dilation
                     ),
-                    TensorOp::PoolPick(p) | TensorOp::PoolScatter(p) | TensorOp::PoolAvg(p) | TensorOp::PoolAvgBack(p) => {
+                    TensorOp::Conv(c) | TensorOp::ConvBackData(c) | TensorOp::ConvBackWeight(c) => {
+                        let r = c.rows;
+                        format!(
+                            "{}x{}x{} -> {}x{}x{}, kernel {}x{}, stride {}x{}, padding {}x{}, dilation {}x{}",
+                            c.c_in,
+                            r.len_in,
+                            c.len_in,
+                            c.c_out,
+                            r.len_out,
+                            c.len_out,
+                            r.kernel,
+                            c.kernel,
+                            r.stride,
+                            c.stride,
+                            r.padding,
+                            c.padding,
+                            r.dilation,
+                            c.dilation
+                        )
+                    }
+                    TensorOp::PoolPick(p) | TensorOp::PoolScatter(p) | TensorOp::PoolAvg(p) | TensorOp::PoolAvgBack(p)
+                        if p.rows == Axis::ONE =>
+                    {
                         format!("{}x{} -> {}x{}, window {}, stride {}", p.channels, p.len_in, p.channels, p.len_out, p.window, p.stride)
+                    }
+                    TensorOp::PoolPick(p) | TensorOp::PoolScatter(p) | TensorOp::PoolAvg(p) | TensorOp::PoolAvgBack(p) => {
+                        let r = p.rows;
+                        format!(
+                            "{}x{}x{} -> {}x{}x{}, window {}x{}, stride {}x{}",
+                            p.channels, r.len_in, p.len_in, p.channels, r.len_out, p.len_out, r.kernel, p.window, r.stride, p.stride
+                        )
                     }
                     TensorOp::Spread { rows, cols } | TensorOp::SumRows { rows, cols } => format!("{rows}x{cols}"),
                     TensorOp::PlaceRows(r) | TensorOp::TakeRows(r) => {

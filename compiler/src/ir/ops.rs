@@ -128,21 +128,59 @@ impl Dft {
     }
 }
 
-/// Sizes of a one-dimensional convolution over `[channels × positions]`
-/// arrays (row-major, as PyTorch's `conv1d` without a batch axis):
-/// `y[o, t] = Σ_{c, j} w[o, c, j] · x[c, t·stride + j·dilation − padding]`,
-/// where samples outside `0..len_in` are zero.
+/// The row axis of a two-dimensional convolution or pooling window (the
+/// column axis is the [`Conv`]'s or [`Pool`]'s own fields): positions,
+/// taps (the window for pooling), stride, padding and dilation, with
+/// `len_out = (len_in + 2·padding − dilation·(kernel−1) − 1) / stride + 1`.
+/// One-dimensional layers have [`Axis::ONE`], one row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Axis {
+    /// Input rows.
+    pub len_in: u32,
+    /// Output rows.
+    pub len_out: u32,
+    /// Kernel (or pooling window) rows.
+    pub kernel: u32,
+    /// Step between output rows.
+    pub stride: u32,
+    /// Zero rows added above and below.
+    pub padding: u32,
+    /// Step between kernel rows.
+    pub dilation: u32,
+}
+
+impl Axis {
+    /// The row axis of a one-dimensional layer: one row in, one row out.
+    pub const ONE: Axis = Axis { len_in: 1, len_out: 1, kernel: 1, stride: 1, padding: 0, dilation: 1 };
+
+    /// An axis of `len_in` positions read by `kernel` taps `dilation`
+    /// apart at steps of `stride` with `padding` zeros on each side, or
+    /// `None` when the kernel spans more than the padded input.
+    pub fn new(len_in: u32, kernel: u32, stride: u32, padding: u32, dilation: u32) -> Option<Axis> {
+        let span = dilation as u64 * (kernel as u64).checked_sub(1)? + 1;
+        let padded = len_in as u64 + 2 * padding as u64;
+        let len_out = u32::try_from(padded.checked_sub(span)? / (stride as u64).max(1) + 1).ok()?;
+        Some(Axis { len_in, len_out, kernel, stride, padding, dilation })
+    }
+}
+
+/// Sizes of a convolution over `[channels × rows × columns]` arrays
+/// (row-major, as PyTorch's `conv2d` without a batch axis; `conv1d` has
+/// one row, [`Axis::ONE`]):
+/// `y[o, r, t] = Σ_{c, i, j} w[o, c, i, j] · x[c, r·rows.stride + i·rows.dilation − rows.padding, t·stride + j·dilation − padding]`,
+/// where samples outside the input are zero. The unnamed fields are the
+/// column axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Conv {
     /// Input channels.
     pub c_in: u32,
     /// Output channels.
     pub c_out: u32,
-    /// Input positions.
+    /// Input positions (columns).
     pub len_in: u32,
     /// Output positions: `(len_in + 2·padding − dilation·(kernel−1) − 1) / stride + 1`.
     pub len_out: u32,
-    /// Kernel taps.
+    /// Kernel taps (columns).
     pub kernel: u32,
     /// Step between output positions.
     pub stride: u32,
@@ -150,22 +188,67 @@ pub struct Conv {
     pub padding: u32,
     /// Step between taps.
     pub dilation: u32,
+    /// The row axis ([`Axis::ONE`] for `conv1d`).
+    pub rows: Axis,
 }
 
-/// Sizes of a pooling window over `[channels × positions]` arrays:
-/// output `o` of channel `c` covers inputs `o·stride .. o·stride + window`.
+impl Conv {
+    /// Elements of the input: `c_in · rows · columns`.
+    pub fn input_len(&self) -> usize {
+        (self.c_in * self.rows.len_in * self.len_in) as usize
+    }
+
+    /// Elements of the output: `c_out · rows · columns`.
+    pub fn output_len(&self) -> usize {
+        (self.c_out * self.rows.len_out * self.len_out) as usize
+    }
+
+    /// Taps of one kernel: `kernel rows · kernel columns`.
+    pub fn taps(&self) -> usize {
+        (self.rows.kernel * self.kernel) as usize
+    }
+
+    /// Elements of the weight: `c_out · c_in · taps`.
+    pub fn weight_len(&self) -> usize {
+        (self.c_out * self.c_in) as usize * self.taps()
+    }
+}
+
+/// Sizes of a pooling window over `[channels × rows × columns]` arrays
+/// (one row for one-dimensional pooling): output `(r, o)` of channel `c`
+/// covers rows `r·rows.stride .. + rows.kernel` and columns
+/// `o·stride .. o·stride + window`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Pool {
     /// Channels (pooled independently).
     pub channels: u32,
-    /// Input positions.
+    /// Input positions (columns).
     pub len_in: u32,
     /// Output positions: `(len_in − window) / stride + 1`.
     pub len_out: u32,
-    /// Window length.
+    /// Window length (columns).
     pub window: u32,
     /// Step between windows.
     pub stride: u32,
+    /// The row axis: [`Axis::ONE`] in one dimension; no padding, dilation 1.
+    pub rows: Axis,
+}
+
+impl Pool {
+    /// Elements of the input.
+    pub fn input_len(&self) -> usize {
+        (self.channels * self.rows.len_in * self.len_in) as usize
+    }
+
+    /// Elements of the output.
+    pub fn output_len(&self) -> usize {
+        (self.channels * self.rows.len_out * self.len_out) as usize
+    }
+
+    /// Elements of one window: `rows · columns`.
+    pub fn window_len(&self) -> usize {
+        (self.rows.kernel * self.window) as usize
+    }
 }
 
 /// A block of rows of a `[rows × cols]` array: rows `from .. from + count`
@@ -245,13 +328,13 @@ impl TensorOp {
             TensorOp::MatVec { m, k } => [u(m * k), u(k)],
             TensorOp::MatTVec { m, k } => [u(m * k), u(m)],
             TensorOp::Outer { m, k } => [u(m), u(k)],
-            TensorOp::Conv(c) => [u(c.c_in * c.len_in), u(c.c_out * c.c_in * c.kernel)],
-            TensorOp::ConvBackData(c) => [u(c.c_out * c.len_out), u(c.c_out * c.c_in * c.kernel)],
-            TensorOp::ConvBackWeight(c) => [u(c.c_out * c.len_out), u(c.c_in * c.len_in)],
-            TensorOp::PoolPick(p) => [u(p.channels * p.len_in), u(p.channels * p.len_in)],
-            TensorOp::PoolScatter(p) => [u(p.channels * p.len_in), u(p.channels * p.len_out)],
-            TensorOp::PoolAvg(p) => [u(p.channels * p.len_in), 0],
-            TensorOp::PoolAvgBack(p) => [u(p.channels * p.len_out), 0],
+            TensorOp::Conv(c) => [c.input_len(), c.weight_len()],
+            TensorOp::ConvBackData(c) => [c.output_len(), c.weight_len()],
+            TensorOp::ConvBackWeight(c) => [c.output_len(), c.input_len()],
+            TensorOp::PoolPick(p) => [p.input_len(), p.input_len()],
+            TensorOp::PoolScatter(p) => [p.input_len(), p.output_len()],
+            TensorOp::PoolAvg(p) => [p.input_len(), 0],
+            TensorOp::PoolAvgBack(p) => [p.output_len(), 0],
             TensorOp::Spread { rows, .. } => [u(rows), 0],
             TensorOp::SumRows { rows, cols } => [u(rows * cols), 0],
             TensorOp::PlaceRows(r) => [u(r.count * r.cols), 0],
@@ -266,11 +349,11 @@ impl TensorOp {
             TensorOp::MatVec { m, .. } => u(m),
             TensorOp::MatTVec { k, .. } => u(k),
             TensorOp::Outer { m, k } => u(m * k),
-            TensorOp::Conv(c) => u(c.c_out * c.len_out),
-            TensorOp::ConvBackData(c) => u(c.c_in * c.len_in),
-            TensorOp::ConvBackWeight(c) => u(c.c_out * c.c_in * c.kernel),
-            TensorOp::PoolPick(p) | TensorOp::PoolAvg(p) => u(p.channels * p.len_out),
-            TensorOp::PoolScatter(p) | TensorOp::PoolAvgBack(p) => u(p.channels * p.len_in),
+            TensorOp::Conv(c) => c.output_len(),
+            TensorOp::ConvBackData(c) => c.input_len(),
+            TensorOp::ConvBackWeight(c) => c.weight_len(),
+            TensorOp::PoolPick(p) | TensorOp::PoolAvg(p) => p.output_len(),
+            TensorOp::PoolScatter(p) | TensorOp::PoolAvgBack(p) => p.input_len(),
             TensorOp::Spread { rows, cols } => u(rows * cols),
             TensorOp::SumRows { rows, .. } => u(rows),
             TensorOp::PlaceRows(r) => u(r.rows * r.cols),

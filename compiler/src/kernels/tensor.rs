@@ -5,7 +5,7 @@
 //! the definition `⟨A x, y⟩ = ⟨x, Aᵀ y⟩`, which is what makes the adjoint
 //! pass's rules correct.
 
-use crate::ir::{Conv, Pool, TensorOp};
+use crate::ir::{Axis, Conv, Pool, TensorOp};
 use num_traits::Float;
 use std::cell::RefCell;
 
@@ -166,34 +166,35 @@ pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
             }
         }
         // The convolutions as matrix products with the unfolded input
-        // `col` (`c_in · kernel` rows of `len_out`, see `unfold`): y = W col,
-        // dW = dy colᵀ, and dx = fold(Wᵀ dy).
-        // One input channel at stride 1: the unfolded input is a sliding
-        // view of the zero-padded input (`padded_view`), read in place.
-        TensorOp::Conv(c) if c.c_in == 1 && c.stride == 1 => {
+        // `col` (`c_in · taps` rows of one value per output position, see
+        // `unfold`): y = W col, dW = dy colᵀ, and dx = fold(Wᵀ dy).
+        // One row and one input channel at stride 1: the unfolded input is
+        // a sliding view of the zero-padded input (`padded_view`), read in
+        // place.
+        TensorOp::Conv(c) if c.c_in == 1 && c.stride == 1 && c.rows == Axis::ONE => {
             let (k, n, dil) = (u(c.kernel), u(c.len_out), u(c.dilation));
             padded_view(c, a, |xp| T::gemm([u(c.c_out), k, n], b, [k, 1], xp, [dil, 1], T::zero(), out, n));
         }
-        TensorOp::ConvBackWeight(c) if c.c_in == 1 && c.stride == 1 => {
+        TensorOp::ConvBackWeight(c) if c.c_in == 1 && c.stride == 1 && c.rows == Axis::ONE => {
             let (k, n, dil) = (u(c.kernel), u(c.len_out), u(c.dilation));
             padded_view(c, b, |xp| T::gemm([u(c.c_out), n, k], a, [n, 1], xp, [1, dil], T::zero(), out, k));
         }
         TensorOp::Conv(c) => {
-            let (rows, n) = (u(c.c_in * c.kernel), u(c.len_out));
+            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out * c.len_out));
             T::with_scratch(rows * n, |col| {
                 unfold(c, a, col);
                 T::gemm([u(c.c_out), rows, n], b, [rows, 1], col, [n, 1], T::zero(), out, n);
             });
         }
         TensorOp::ConvBackWeight(c) => {
-            let (rows, n) = (u(c.c_in * c.kernel), u(c.len_out));
+            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out * c.len_out));
             T::with_scratch(rows * n, |col| {
                 unfold(c, b, col);
                 T::gemm([u(c.c_out), n, rows], a, [n, 1], col, [1, n], T::zero(), out, rows);
             });
         }
         TensorOp::ConvBackData(c) => {
-            let (rows, n) = (u(c.c_in * c.kernel), u(c.len_out));
+            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out * c.len_out));
             T::with_scratch(rows * n, |col| {
                 T::gemm([rows, u(c.c_out), n], b, [1, rows], a, [n, 1], T::zero(), col, n);
                 fold_add(c, col, out);
@@ -204,11 +205,11 @@ pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
         TensorOp::PoolPick(p) => pool_argmax(p, a, |src, dst| out[dst] = b[src]),
         TensorOp::PoolScatter(p) => pool_argmax(p, a, |src, dst| out[src] = out[src] + b[dst]),
         TensorOp::PoolAvg(p) => {
-            let inv = T::one() / T::from(p.window).unwrap_or_else(T::one);
+            let inv = T::one() / T::from(p.window_len()).unwrap_or_else(T::one);
             pool_windows(p, |src, dst| out[dst] = out[dst] + a[src] * inv);
         }
         TensorOp::PoolAvgBack(p) => {
-            let inv = T::one() / T::from(p.window).unwrap_or_else(T::one);
+            let inv = T::one() / T::from(p.window_len()).unwrap_or_else(T::one);
             pool_windows(p, |src, dst| out[src] = out[src] + a[dst] * inv);
         }
         TensorOp::Spread { rows, cols } => {
@@ -277,10 +278,10 @@ fn axpy<T: Float>(alpha: T, x: &[T], y: &mut [T]) {
     }
 }
 
-/// Index of weight `(o, c, j)` in the row-major `c_out × c_in × kernel` array.
+/// Index of weight `(o, c, i, j)` in the row-major `c_out × c_in × rows × kernel` array.
 #[cfg(test)]
-fn weight_index(c: Conv, o: usize, ch: usize, j: usize) -> usize {
-    (o * c.c_in as usize + ch) * c.kernel as usize + j
+fn weight_index(c: Conv, o: usize, ch: usize, i: usize, j: usize) -> usize {
+    ((o * c.c_in as usize + ch) * c.rows.kernel as usize + i) * c.kernel as usize + j
 }
 
 /// The terms of a convolution sum for one tap `(o, c, j)` whose input
@@ -294,30 +295,46 @@ struct Run {
     stride: usize,
 }
 
-/// Unfolds (im2col) input `x` (`c_in × len_in`) into `col`, row
-/// `c · kernel + j` of which holds, for every output position `t`, the
-/// input sample tap `j` of channel `c` multiplies there (0 in the padding).
+/// Unfolds (im2col) input `x` (`c_in × rows × len_in`) into `col`: row
+/// `(c · kernel rows + i) · kernel + j` of which holds, for every output
+/// position `(r, t)` in row-major order, the input sample tap `(i, j)` of
+/// channel `c` multiplies there (0 in the padding).
 fn unfold<T: Float>(c: Conv, x: &[T], col: &mut [T]) {
-    let (k, n, len_in) = (c.kernel as usize, c.len_out as usize, c.len_in as usize);
+    let (kh, kw) = (c.rows.kernel as usize, c.kernel as usize);
+    let (wi, wo) = (c.len_in as usize, c.len_out as usize);
+    let n = c.rows.len_out as usize * wo;
     for ch in 0..c.c_in as usize {
-        for j in 0..k {
-            let row = &mut col[(ch * k + j) * n..][..n];
-            let Some(r) = tap_run(c, j) else {
-                row.fill(T::zero());
-                continue;
-            };
-            row[..r.t0].fill(T::zero());
-            row[r.t1..].fill(T::zero());
-            let src = &x[ch * len_in..][r.start..];
-            if r.stride == 1 {
-                row[r.t0..r.t1].copy_from_slice(&src[..r.t1 - r.t0]);
-            } else {
-                for (d, s) in row[r.t0..r.t1].iter_mut().zip(src.iter().step_by(r.stride)) {
-                    *d = *s;
+        for i in 0..kh {
+            for j in 0..kw {
+                let row = &mut col[((ch * kh + i) * kw + j) * n..][..n];
+                let run = tap_run(c, j);
+                for (r, seg) in row.chunks_exact_mut(wo).enumerate() {
+                    let (Some(run), Some(y)) = (run, input_row(c, r, i)) else {
+                        seg.fill(T::zero());
+                        continue;
+                    };
+                    seg[..run.t0].fill(T::zero());
+                    seg[run.t1..].fill(T::zero());
+                    let src = &x[(ch * c.rows.len_in as usize + y) * wi..][run.start..];
+                    if run.stride == 1 {
+                        seg[run.t0..run.t1].copy_from_slice(&src[..run.t1 - run.t0]);
+                    } else {
+                        for (d, s) in seg[run.t0..run.t1].iter_mut().zip(src.iter().step_by(run.stride)) {
+                            *d = *s;
+                        }
+                    }
                 }
             }
         }
     }
+}
+
+/// The input row kernel row `i` reads for output row `r`, or `None` in the
+/// padding.
+fn input_row(c: Conv, r: usize, i: usize) -> Option<usize> {
+    let a = c.rows;
+    let y = (r * a.stride as usize + i * a.dilation as usize).checked_sub(a.padding as usize)?;
+    (y < a.len_in as usize).then_some(y)
 }
 
 /// Calls `f` with the one-channel input `x` zero-padded by `c.padding` on
@@ -341,17 +358,25 @@ fn padded_view<T: Scalar, R>(c: Conv, x: &[T], f: impl FnOnce(&[T]) -> R) -> R {
 /// The transpose of [`unfold`]: adds every element of `col` to the input
 /// sample it was read from.
 fn fold_add<T: Float>(c: Conv, col: &[T], out: &mut [T]) {
-    let (k, n, len_in) = (c.kernel as usize, c.len_out as usize, c.len_in as usize);
+    let (kh, kw) = (c.rows.kernel as usize, c.kernel as usize);
+    let (wi, wo) = (c.len_in as usize, c.len_out as usize);
+    let n = c.rows.len_out as usize * wo;
     for ch in 0..c.c_in as usize {
-        for j in 0..k {
-            let Some(r) = tap_run(c, j) else { continue };
-            let src = &col[(ch * k + j) * n..][r.t0..r.t1];
-            let dst = &mut out[ch * len_in..][r.start..];
-            if r.stride == 1 {
-                axpy(T::one(), src, &mut dst[..src.len()]);
-            } else {
-                for (d, s) in dst.iter_mut().step_by(r.stride).zip(src) {
-                    *d = *d + *s;
+        for i in 0..kh {
+            for j in 0..kw {
+                let Some(run) = tap_run(c, j) else { continue };
+                let row = &col[((ch * kh + i) * kw + j) * n..][..n];
+                for (r, seg) in row.chunks_exact(wo).enumerate() {
+                    let Some(y) = input_row(c, r, i) else { continue };
+                    let src = &seg[run.t0..run.t1];
+                    let dst = &mut out[(ch * c.rows.len_in as usize + y) * wi..][run.start..];
+                    if run.stride == 1 {
+                        axpy(T::one(), src, &mut dst[..src.len()]);
+                    } else {
+                        for (d, s) in dst.iter_mut().step_by(run.stride).zip(src) {
+                            *d = *d + *s;
+                        }
+                    }
                 }
             }
         }
@@ -373,25 +398,46 @@ fn tap_run(c: Conv, j: usize) -> Option<Run> {
 /// Calls `f(src, dst)` for every input element `src` of every window `dst`.
 fn pool_windows(p: Pool, mut f: impl FnMut(usize, usize)) {
     let u = |x: u32| x as usize;
+    let (wi, wo, ho) = (u(p.len_in), u(p.len_out), u(p.rows.len_out));
     for ch in 0..u(p.channels) {
-        for o in 0..u(p.len_out) {
-            for w in 0..u(p.window) {
-                f(ch * u(p.len_in) + o * u(p.stride) + w, ch * u(p.len_out) + o);
+        for r in 0..ho {
+            let top = (ch * u(p.rows.len_in) + r * u(p.rows.stride)) * wi;
+            for o in 0..wo {
+                let dst = (ch * ho + r) * wo + o;
+                for i in 0..u(p.rows.kernel) {
+                    for w in 0..u(p.window) {
+                        f(top + i * wi + o * u(p.stride) + w, dst);
+                    }
+                }
             }
         }
     }
 }
 
 /// Calls `f(src, dst)` once per window `dst` with `src` the position of the
-/// first largest element of `x` in it (NaN never wins against a number; in
-/// a window of NaNs only, the last).
+/// first largest element of `x` in it, in row-major order (NaN never wins
+/// against a number; in a window of NaNs only, the last).
 fn pool_argmax<T: Float>(p: Pool, x: &[T], mut f: impl FnMut(usize, usize)) {
     let u = |x: u32| x as usize;
+    let (wi, wo, ho, win) = (u(p.len_in), u(p.len_out), u(p.rows.len_out), u(p.window));
+    let mut gathered = Vec::with_capacity(p.window_len());
     for ch in 0..u(p.channels) {
-        for o in 0..u(p.len_out) {
-            let start = ch * u(p.len_in) + o * u(p.stride);
-            let window = &x[start..start + u(p.window)];
-            f(start + window_argmax(window), ch * u(p.len_out) + o);
+        for r in 0..ho {
+            let top = (ch * u(p.rows.len_in) + r * u(p.rows.stride)) * wi;
+            for o in 0..wo {
+                let (start, dst) = (top + o * u(p.stride), (ch * ho + r) * wo + o);
+                if p.rows.kernel == 1 {
+                    f(start + window_argmax(&x[start..start + win]), dst);
+                } else {
+                    // A window of several rows is not contiguous: scan a copy.
+                    gathered.clear();
+                    for i in 0..u(p.rows.kernel) {
+                        gathered.extend_from_slice(&x[start + i * wi..][..win]);
+                    }
+                    let k = window_argmax(&gathered);
+                    f(start + (k / win) * wi + k % win, dst);
+                }
+            }
         }
     }
 }
@@ -434,7 +480,7 @@ fn window_argmax_slow<T: Float>(window: &[T]) -> usize {
 /// pooling at a quarter of f32 inference with the scalar scan.
 #[cfg(target_arch = "x86_64")]
 mod pool4 {
-    use super::{window_argmax, Pool};
+    use super::{window_argmax, Axis, Pool};
     use num_traits::Float;
     use std::arch::x86_64::*;
 
@@ -569,7 +615,7 @@ mod pool4 {
     /// [`super::Scalar::max_pool_vector`] for windows of 4 at stride 4.
     #[inline(always)]
     fn windows_of_4<V: Lanes>(pick: bool, p: Pool, a: &[V::T], b: &[V::T], out: &mut [V::T]) -> bool {
-        if p.window != 4 || p.stride != 4 {
+        if p.window != 4 || p.stride != 4 || p.rows != Axis::ONE {
             return false;
         }
         let (len_in, len_out) = (p.len_in as usize, p.len_out as usize);

@@ -2,7 +2,7 @@
 //! the fast paths against the plain scans.
 
 use super::*;
-use crate::ir::Rows;
+use crate::ir::{Axis, Rows};
 
 fn pseudo_random(n: usize, seed: u64) -> Vec<f64> {
     let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -39,9 +39,37 @@ fn convs() -> Vec<Conv> {
         (1, 2, 3, 5, 1, 4, 1),
         (1, 2, 10, 3, 1, 0, 1),
     ] {
-        let span = dilation * (kernel - 1) + 1;
-        let len_out = (len_in + 2 * padding - span) / stride + 1;
-        out.push(Conv { c_in, c_out, len_in, len_out, kernel, stride, padding, dilation });
+        let len_out = Axis::new(len_in, kernel, stride, padding, dilation).expect("a valid axis").len_out;
+        out.push(Conv { c_in, c_out, len_in, len_out, kernel, stride, padding, dilation, rows: Axis::ONE });
+    }
+    // Two dimensions: square and oblong kernels, stride, padding and
+    // dilation per axis, a kernel row that only meets padding, one column.
+    for ((c_in, c_out), (rows, kh, sh, ph, dh), (len_in, kernel, stride, padding, dilation)) in [
+        ((1, 2), (5, 3, 1, 1, 1), (6, 3, 1, 1, 1)),
+        ((2, 3), (7, 2, 2, 0, 1), (9, 3, 2, 1, 2)),
+        ((3, 2), (4, 3, 1, 2, 2), (5, 1, 1, 0, 1)),
+        ((1, 1), (6, 1, 3, 0, 1), (1, 1, 1, 0, 1)),
+        ((2, 4), (8, 4, 2, 3, 1), (8, 4, 2, 3, 1)),
+    ] {
+        let len_out = Axis::new(len_in, kernel, stride, padding, dilation).expect("a valid axis").len_out;
+        let rows = Axis::new(rows, kh, sh, ph, dh).expect("a valid axis");
+        out.push(Conv { c_in, c_out, len_in, len_out, kernel, stride, padding, dilation, rows });
+    }
+    out
+}
+
+fn pools() -> Vec<Pool> {
+    let mut out = Vec::new();
+    for (channels, (rows, kh, sh), (len_in, window, stride)) in [
+        (2, (1, 1, 1), (9, 2, 2)),
+        (3, (1, 1, 1), (10, 4, 3)),
+        (2, (6, 2, 2), (7, 3, 2)),
+        (1, (5, 3, 1), (4, 2, 1)),
+        (3, (9, 4, 4), (8, 4, 4)),
+    ] {
+        let len_out = (len_in - window) / stride + 1;
+        let rows = Axis::new(rows, kh, sh, 0, 1).expect("a valid axis");
+        out.push(Pool { channels, len_in, len_out, window, stride, rows });
     }
     out
 }
@@ -60,24 +88,57 @@ fn matvec_and_outer_match_the_definition() {
     assert_eq!(outer[2 * k + 1], y[2] * x[1]);
 }
 
+/// PyTorch's `conv1d` and `conv2d` (cross-correlation, zero padding), term
+/// by term.
 #[test]
 fn convolution_matches_the_definition() {
+    let u = |x: u32| x as usize;
     for c in convs() {
-        let x = pseudo_random((c.c_in * c.len_in) as usize, 3);
-        let w = pseudo_random((c.c_out * c.c_in * c.kernel) as usize, 4);
+        let x = pseudo_random(c.input_len(), 3);
+        let w = pseudo_random(c.weight_len(), 4);
         let y = run(TensorOp::Conv(c), &x, &w);
-        for o in 0..c.c_out as usize {
-            for t in 0..c.len_out as usize {
-                let mut want = 0.0;
-                for ch in 0..c.c_in as usize {
-                    for j in 0..c.kernel as usize {
-                        let pos = (t * c.stride as usize + j * c.dilation as usize) as i64 - c.padding as i64;
-                        if (0..c.len_in as i64).contains(&pos) {
-                            want += w[weight_index(c, o, ch, j)] * x[ch * c.len_in as usize + pos as usize];
+        let (hi, wi, ho, wo) = (u(c.rows.len_in), u(c.len_in), u(c.rows.len_out), u(c.len_out));
+        for o in 0..u(c.c_out) {
+            for r in 0..ho {
+                for t in 0..wo {
+                    let mut want = 0.0;
+                    for ch in 0..u(c.c_in) {
+                        for i in 0..u(c.rows.kernel) {
+                            for j in 0..u(c.kernel) {
+                                let row = (r * u(c.rows.stride) + i * u(c.rows.dilation)) as i64 - c.rows.padding as i64;
+                                let col = (t * u(c.stride) + j * u(c.dilation)) as i64 - c.padding as i64;
+                                if (0..hi as i64).contains(&row) && (0..wi as i64).contains(&col) {
+                                    want += w[weight_index(c, o, ch, i, j)] * x[(ch * hi + row as usize) * wi + col as usize];
+                                }
+                            }
                         }
                     }
+                    assert!((y[(o * ho + r) * wo + t] - want).abs() < 1e-14, "{c:?}");
                 }
-                assert!((y[o * c.len_out as usize + t] - want).abs() < 1e-14, "{c:?}");
+            }
+        }
+    }
+}
+
+/// Max and average pooling in two dimensions, window by window.
+#[test]
+fn pooling_matches_the_definition() {
+    let u = |x: u32| x as usize;
+    for p in pools() {
+        let x = pseudo_random(p.input_len(), 23);
+        let (max, avg) = (run(TensorOp::PoolPick(p), &x, &x), run(TensorOp::PoolAvg(p), &x, &[]));
+        let (hi, wi, ho, wo) = (u(p.rows.len_in), u(p.len_in), u(p.rows.len_out), u(p.len_out));
+        for ch in 0..u(p.channels) {
+            for r in 0..ho {
+                for o in 0..wo {
+                    let window: Vec<f64> = (0..u(p.rows.kernel))
+                        .flat_map(|i| (0..u(p.window)).map(move |j| (i, j)))
+                        .map(|(i, j)| x[(ch * hi + r * u(p.rows.stride) + i) * wi + o * u(p.stride) + j])
+                        .collect();
+                    let at = (ch * ho + r) * wo + o;
+                    assert_eq!(max[at], window.iter().cloned().fold(f64::NEG_INFINITY, f64::max), "{p:?}");
+                    assert!((avg[at] - window.iter().sum::<f64>() / window.len() as f64).abs() < 1e-15, "{p:?}");
+                }
             }
         }
     }
@@ -95,20 +156,17 @@ fn transposes_satisfy_the_adjoint_identity() {
     close(inner(&run(TensorOp::MatVec { m, k }, &w, &x), &y), inner(&x, &run(TensorOp::MatTVec { m, k }, &w, &y)));
     close(inner(&run(TensorOp::MatVec { m, k }, &w, &x), &y), inner(&w, &run(TensorOp::Outer { m, k }, &y, &x)));
     for c in convs() {
-        let x = pseudo_random((c.c_in * c.len_in) as usize, 8);
-        let w = pseudo_random((c.c_out * c.c_in * c.kernel) as usize, 9);
-        let d = pseudo_random((c.c_out * c.len_out) as usize, 10);
+        let x = pseudo_random(c.input_len(), 8);
+        let w = pseudo_random(c.weight_len(), 9);
+        let d = pseudo_random(c.output_len(), 10);
         let lhs = inner(&run(TensorOp::Conv(c), &x, &w), &d);
         close(lhs, inner(&x, &run(TensorOp::ConvBackData(c), &d, &w)));
         close(lhs, inner(&w, &run(TensorOp::ConvBackWeight(c), &d, &x)));
     }
-    for p in [
-        Pool { channels: 2, len_in: 9, len_out: 4, window: 2, stride: 2 },
-        Pool { channels: 3, len_in: 10, len_out: 3, window: 4, stride: 3 },
-    ] {
-        let x = pseudo_random((p.channels * p.len_in) as usize, 11);
-        let a = pseudo_random((p.channels * p.len_in) as usize, 12);
-        let d = pseudo_random((p.channels * p.len_out) as usize, 13);
+    for p in pools() {
+        let x = pseudo_random(p.input_len(), 11);
+        let a = pseudo_random(p.input_len(), 12);
+        let d = pseudo_random(p.output_len(), 13);
         close(inner(&run(TensorOp::PoolPick(p), &x, &a), &d), inner(&a, &run(TensorOp::PoolScatter(p), &x, &d)));
         close(inner(&run(TensorOp::PoolAvg(p), &a, &[]), &d), inner(&a, &run(TensorOp::PoolAvgBack(p), &d, &[])));
     }
@@ -125,16 +183,21 @@ fn transposes_satisfy_the_adjoint_identity() {
 
 #[test]
 fn max_pooling_takes_the_first_of_tied_maxima() {
-    let p = Pool { channels: 1, len_in: 4, len_out: 2, window: 2, stride: 2 };
+    let p = Pool { channels: 1, len_in: 4, len_out: 2, window: 2, stride: 2, rows: Axis::ONE };
     let x = [1.0, 1.0, -2.0, 3.0];
     assert_eq!(run(TensorOp::PoolPick(p), &x, &x), vec![1.0, 3.0]);
     assert_eq!(run(TensorOp::PoolScatter(p), &x, &[10.0, 20.0]), vec![10.0, 0.0, 0.0, 20.0]);
+    // 2 × 2 windows of a 2 × 4 image: the first in row-major order wins.
+    let p = Pool { rows: Axis::new(2, 2, 2, 0, 1).expect("a valid axis"), ..p };
+    let x = [0.0, 5.0, 1.0, 2.0, 5.0, 5.0, 2.0, 1.0];
+    assert_eq!(run(TensorOp::PoolPick(p), &x, &x), vec![5.0, 2.0]);
+    assert_eq!(run(TensorOp::PoolScatter(p), &x, &[10.0, 20.0]), vec![0.0, 10.0, 0.0, 20.0, 0.0, 0.0, 0.0, 0.0]);
 }
 
 /// NaN never wins against a number, wherever it sits in the window.
 #[test]
 fn max_pooling_passes_over_nan() {
-    let p = Pool { channels: 1, len_in: 9, len_out: 3, window: 3, stride: 3 };
+    let p = Pool { channels: 1, len_in: 9, len_out: 3, window: 3, stride: 3, rows: Axis::ONE };
     let x = [f64::NAN, -1.0, -3.0, 2.0, f64::NAN, 5.0, 4.0, 4.0, f64::NAN];
     assert_eq!(run(TensorOp::PoolPick(p), &x, &x), vec![-1.0, 5.0, 4.0]);
     let positions = run(TensorOp::PoolScatter(p), &x, &[1.0, 2.0, 3.0]);
@@ -166,7 +229,7 @@ fn windows_of_4_match_the_scan<T: Scalar>() {
     let t = |v: f64| T::from(v).unwrap_or_else(T::nan);
     for (channels, len_in) in [(3u32, 4 * 4 * 9 + 3), (2, 4 * 13), (1, 7), (2, 16), (2, 4 * 3 + 1)] {
         let len_out = len_in / 4;
-        let p = Pool { channels, len_in, len_out, window: 4, stride: 4 };
+        let p = Pool { channels, len_in, len_out, window: 4, stride: 4, rows: Axis::ONE };
         let mut x: Vec<T> = pseudo_random((channels * len_in) as usize, 21).into_iter().map(t).collect();
         for (i, v) in x.iter_mut().enumerate() {
             if i % 5 == 3 || i % 7 == 0 {
@@ -225,8 +288,8 @@ fn f64_windows_of_4_match_the_scan() {
 #[test]
 fn f32_entry_point_matches_f64() {
     let c = convs()[2];
-    let x = pseudo_random((c.c_in * c.len_in) as usize, 16);
-    let w = pseudo_random((c.c_out * c.c_in * c.kernel) as usize, 17);
+    let x = pseudo_random(c.input_len(), 16);
+    let w = pseudo_random(c.weight_len(), 17);
     let op = TensorOp::Conv(c);
     let (x32, w32): (Vec<f32>, Vec<f32>) = (x.iter().map(|v| *v as f32).collect(), w.iter().map(|v| *v as f32).collect());
     let mut o64 = vec![0.0f64; op.out_len()];
