@@ -195,22 +195,22 @@ pub struct Conv {
 impl Conv {
     /// Elements of the input: `c_in · rows · columns`.
     pub fn input_len(&self) -> usize {
-        (self.c_in * self.rows.len_in * self.len_in) as usize
+        [self.c_in, self.rows.len_in, self.len_in].iter().map(|x| *x as usize).product()
     }
 
     /// Elements of the output: `c_out · rows · columns`.
     pub fn output_len(&self) -> usize {
-        (self.c_out * self.rows.len_out * self.len_out) as usize
+        [self.c_out, self.rows.len_out, self.len_out].iter().map(|x| *x as usize).product()
     }
 
     /// Taps of one kernel: `kernel rows · kernel columns`.
     pub fn taps(&self) -> usize {
-        (self.rows.kernel * self.kernel) as usize
+        self.rows.kernel as usize * self.kernel as usize
     }
 
     /// Elements of the weight: `c_out · c_in · taps`.
     pub fn weight_len(&self) -> usize {
-        (self.c_out * self.c_in) as usize * self.taps()
+        self.c_out as usize * self.c_in as usize * self.taps()
     }
 }
 
@@ -237,17 +237,17 @@ pub struct Pool {
 impl Pool {
     /// Elements of the input.
     pub fn input_len(&self) -> usize {
-        (self.channels * self.rows.len_in * self.len_in) as usize
+        [self.channels, self.rows.len_in, self.len_in].iter().map(|x| *x as usize).product()
     }
 
     /// Elements of the output.
     pub fn output_len(&self) -> usize {
-        (self.channels * self.rows.len_out * self.len_out) as usize
+        [self.channels, self.rows.len_out, self.len_out].iter().map(|x| *x as usize).product()
     }
 
     /// Elements of one window: `rows · columns`.
     pub fn window_len(&self) -> usize {
-        (self.rows.kernel * self.window) as usize
+        self.rows.kernel as usize * self.window as usize
     }
 }
 

@@ -180,21 +180,21 @@ pub fn apply<T: Scalar>(op: TensorOp, a: &[T], b: &[T], out: &mut [T]) {
             padded_view(c, b, |xp| T::gemm([u(c.c_out), n, k], a, [n, 1], xp, [1, dil], T::zero(), out, k));
         }
         TensorOp::Conv(c) => {
-            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out * c.len_out));
+            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out) * u(c.len_out));
             T::with_scratch(rows * n, |col| {
                 unfold(c, a, col);
                 T::gemm([u(c.c_out), rows, n], b, [rows, 1], col, [n, 1], T::zero(), out, n);
             });
         }
         TensorOp::ConvBackWeight(c) => {
-            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out * c.len_out));
+            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out) * u(c.len_out));
             T::with_scratch(rows * n, |col| {
                 unfold(c, b, col);
                 T::gemm([u(c.c_out), n, rows], a, [n, 1], col, [1, n], T::zero(), out, rows);
             });
         }
         TensorOp::ConvBackData(c) => {
-            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out * c.len_out));
+            let (rows, n) = (u(c.c_in) * c.taps(), u(c.rows.len_out) * u(c.len_out));
             T::with_scratch(rows * n, |col| {
                 T::gemm([rows, u(c.c_out), n], b, [1, rows], a, [n, 1], T::zero(), col, n);
                 fold_add(c, col, out);

@@ -5,7 +5,9 @@
 //!
 //! 1. [`rules::RuleClassifier`]: a fixed matched-filter bank with tuned
 //!    thresholds (`lab/models/glitch/bank.gw`), no gradient training;
-//! 2. a 1-D CNN on the whitened strain (`lab/models/glitch/cnn.gw`);
+//! 2. a 1-D CNN on the whitened strain (`lab/models/glitch/cnn.gw`), and
+//!    a Gravity Spy-style 2-D CNN on Q-transform images of it
+//!    (`lab/models/glitch/gravity_spy.gw`, images from [`qimages`]);
 //! 3. the differentiable model: a trainable template bank feeding a small
 //!    network, trained end to end (`lab/models/glitch/template_net.gw`);
 //!    and its ablation, the same model with the physics front end frozen at
@@ -23,6 +25,7 @@
 
 pub mod leak;
 pub mod metrics;
+pub mod qimages;
 pub mod rules;
 
 use crate::plot;
@@ -41,6 +44,10 @@ use std::time::Instant;
 
 /// The CNN of method 2.
 const CNN_SOURCE: &str = include_str!("../../models/glitch/cnn.gw");
+/// The Gravity Spy-style CNN on Q-transform images of method 2.
+const GRAVITY_SPY_SOURCE: &str = include_str!("../../models/glitch/gravity_spy.gw");
+/// Sample rate of the examples (Hz).
+const SAMPLE_RATE: f64 = 4096.0;
 /// The differentiable model of method 3.
 const TEMPLATE_NET_SOURCE: &str = include_str!("../../models/glitch/template_net.gw");
 
@@ -142,10 +149,30 @@ struct Learner {
     /// Train only the `head` (the ablation: template params stay at their
     /// initial values), and only at the reference size.
     frozen_front_end: bool,
+    /// What the model reads.
+    input: Input,
 }
 
-const LEARNERS: [Learner; 3] = [
-    Learner { key: "cnn", title: "CNN", source: CNN_SOURCE, lr: 3e-3, batch: 32, frozen_front_end: false },
+/// A learner's input.
+#[derive(Clone, Copy, PartialEq)]
+enum Input {
+    /// The whitened strain of each example.
+    Strain,
+    /// Its Q-transform images ([`qimages::q_images`]).
+    QImages,
+}
+
+const LEARNERS: [Learner; 4] = [
+    Learner { key: "cnn", title: "CNN", source: CNN_SOURCE, lr: 3e-3, batch: 32, frozen_front_end: false, input: Input::Strain },
+    Learner {
+        key: "gravity_spy",
+        title: "Gravity Spy-style CNN on Q-scans",
+        source: GRAVITY_SPY_SOURCE,
+        lr: 3e-3,
+        batch: 32,
+        frozen_front_end: false,
+        input: Input::QImages,
+    },
     Learner {
         key: "template_net",
         title: "Differentiable template bank + head",
@@ -153,6 +180,7 @@ const LEARNERS: [Learner; 3] = [
         lr: 3e-3,
         batch: 32,
         frozen_front_end: false,
+        input: Input::Strain,
     },
     Learner {
         key: "template_net_frozen",
@@ -161,6 +189,7 @@ const LEARNERS: [Learner; 3] = [
         lr: 3e-3,
         batch: 32,
         frozen_front_end: true,
+        input: Input::Strain,
     },
 ];
 
@@ -189,6 +218,23 @@ impl TestSets {
     fn all(&self) -> [&Dataset; 4] {
         [&self.standard, &self.low_snr, &self.shifted_psd, &self.held_out_fits]
     }
+
+    /// Every set as `f` maps it.
+    fn map(&self, f: impl Fn(&Dataset) -> Result<Dataset, String>) -> Result<TestSets, String> {
+        Ok(TestSets {
+            standard: f(&self.standard)?,
+            low_snr: f(&self.low_snr)?,
+            shifted_psd: f(&self.shifted_psd)?,
+            held_out_fits: f(&self.held_out_fits)?,
+        })
+    }
+}
+
+/// The training, validation and test sets as one input.
+struct Splits {
+    train: Dataset,
+    val: Dataset,
+    tests: TestSets,
 }
 
 /// One method's predictions on the three test sets, for one training size.
@@ -238,11 +284,18 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
 
     let mut scored = Vec::new();
     scored.push(run_rules(plan, &train, &tests)?);
+    let t0 = Instant::now();
+    eprintln!("Q-transform images of every example ({} views of {}×{})", qimages::DURATIONS.len(), qimages::ROWS, qimages::COLUMNS);
+    let images = |d: &Dataset| qimages::q_images(d, SAMPLE_RATE, o.threads);
+    let q_splits = Splits { train: images(&train)?, val: images(&val)?, tests: tests.map(images)? };
+    eprintln!("  ({:.1} s)", t0.elapsed().as_secs_f64());
+    let strain = Splits { train, val, tests };
     for learner in &LEARNERS {
+        let data = if learner.input == Input::QImages { &q_splits } else { &strain };
         for &n in plan.sizes.iter().filter(|n| !learner.frozen_front_end || **n == plan.reference) {
-            let subset = train.head(n);
+            let subset = data.train.head(n);
             for seed in 0..plan.seeds {
-                scored.push(run_learner(learner, plan, &subset, &val, &tests, o.threads, seed)?);
+                scored.push(run_learner(learner, plan, &subset, &data.val, &data.tests, o.threads, seed)?);
             }
         }
     }
@@ -571,6 +624,37 @@ mod tests {
         assert!(frozen_front_end("scene s {}").is_err());
     }
 
+    /// Design of the Gravity Spy-style CNN, on the validation split only:
+    /// trains each `.gw` file named in `GWML_QCNN` (comma-separated; the
+    /// shipped one by default) on the `--quick` reference set with the
+    /// `--quick` budget, two seeds, and prints validation accuracy.
+    #[test]
+    #[ignore = "design: GWML_QCNN=A.gw,B.gw prints each variant's validation accuracy"]
+    fn gravity_spy_variants_on_the_validation_split() {
+        let plan = Plan::new(true);
+        let draw = |n, seed| glitches(&GlitchOptions { n, seed, snr: SNR, ..Default::default() }).unwrap();
+        let images = |d: &Dataset| qimages::q_images(d, SAMPLE_RATE, 2).unwrap();
+        let (train, val) = (images(&draw(plan.reference, TRAIN_SEED)), images(&draw(plan.val, VAL_SEED)));
+        let files = std::env::var("GWML_QCNN").unwrap_or_default();
+        let sources: Vec<(String, String)> = match files.as_str() {
+            "" => vec![("shipped".into(), GRAVITY_SPY_SOURCE.into())],
+            list => list.split(',').map(|f| (f.to_string(), std::fs::read_to_string(f).unwrap())).collect(),
+        };
+        for (name, source) in sources {
+            let learner = Learner { source: Box::leak(source.into_boxed_str()), ..LEARNERS[1] };
+            for seed in 0..plan.seeds {
+                let val_only =
+                    TestSets { standard: val.clone(), low_snr: val.head(1), shifted_psd: val.head(1), held_out_fits: val.head(1) };
+                let s = run_learner(&learner, &plan, &train, &val, &val_only, 2, seed).unwrap();
+                println!(
+                    "{name}, seed {seed}: validation accuracy {} %, macro P/R {}",
+                    percent(s.confusions[0].accuracy()),
+                    macro_line(&s.confusions[0])
+                );
+            }
+        }
+    }
+
     /// The whole pipeline at a toy size: every method trains and is scored
     /// on every test set, and every table and plot is written with its rows.
     #[test]
@@ -585,29 +669,32 @@ mod tests {
         // Rules, then each learner and the ablation at the reference size
         // (the largest), over two seeds (mean ± sd).
         let summary = read("summary.csv");
-        assert_eq!(summary.lines().count(), 1 + 4, "{summary}");
-        assert_eq!(summary.lines().filter(|l| l.contains(" ± ") && l.contains(",2,")).count(), 3, "{summary}");
-        assert!(summary.contains("Rule-based filtering") && summary.contains("CNN") && summary.contains("template bank"));
-        // Eight classes for each of the four methods.
-        assert_eq!(read("per_class.csv").lines().count(), 1 + 4 * 8);
+        assert_eq!(summary.lines().count(), 1 + 5, "{summary}");
+        assert_eq!(summary.lines().filter(|l| l.contains(" ± ") && l.contains(",2,")).count(), 4, "{summary}");
+        for method in ["Rule-based filtering", "CNN,", "Gravity Spy-style CNN on Q-scans", "template bank"] {
+            assert!(summary.contains(method), "{method}: {summary}");
+        }
+        // Eight classes for each of the five methods.
+        assert_eq!(read("per_class.csv").lines().count(), 1 + 5 * 8);
         // A row per true class for each method, a column per predicted class.
         let confusion = read("confusion.csv");
-        assert_eq!(confusion.lines().count(), 1 + 4 * 8);
+        assert_eq!(confusion.lines().count(), 1 + 5 * 8);
         assert!(confusion.lines().all(|l| l.split(',').count() == 3 + 8), "{confusion}");
         // A probe row per feature: energy, time of peak (all classes, short
         // ones), seven bands.
         assert_eq!(read("leak_probe.csv").lines().count(), 1 + 10);
         // Four test sets for each method.
-        assert_eq!(read("generalisation.csv").lines().count(), 1 + 4 * 4);
+        assert_eq!(read("generalisation.csv").lines().count(), 1 + 5 * 4);
         // Two sizes for each learner, the ablation at the reference size,
         // each over two seeds.
         let curve = read("learning_curve.csv");
-        assert_eq!(curve.lines().count(), 1 + 2 * 2 + 1);
+        assert_eq!(curve.lines().count(), 1 + 3 * 2 + 1);
         assert!(curve.lines().skip(1).all(|l| l.contains(",2,")), "{curve}");
         for png in [
             "learning_curve.png",
             "confusion_rules.png",
             "confusion_cnn.png",
+            "confusion_gravity_spy.png",
             "confusion_template_net.png",
             "confusion_template_net_frozen.png",
         ] {
