@@ -472,9 +472,10 @@ pub struct ExperimentArgs {
 /// The experiments `gwml experiment` runs.
 #[derive(Clone, Copy, ValueEnum)]
 pub enum ExperimentKind {
-    /// Glitch classification: a rule-based filter bank, a CNN and a
-    /// differentiable template bank with a network head, on the same data
-    /// (issue #7's reference experiment).
+    /// Glitch classification: a rule-based filter bank, a CNN on the
+    /// strain, a Gravity Spy-style CNN on Q-scans and a differentiable
+    /// template bank with a network head, on the same data (issue #7's
+    /// reference experiment).
     Glitch,
     /// `gwml explain` on injections of every glitch family and a chirp into
     /// simulated strain: how often the right family wins, pulls of the

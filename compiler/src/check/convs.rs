@@ -48,7 +48,7 @@ impl<'a> Checker<'a> {
         let mut axis = |len: u32, kernel: u32, what: &str| {
             let axis = Axis::new(len, kernel, stride, padding, dilation);
             if axis.is_none() {
-                let span = dilation as u64 * (kernel as u64 - 1) + 1;
+                let span = dilation as u64 * (kernel as u64).saturating_sub(1) + 1;
                 let padded = len as u64 + 2 * padding as u64;
                 self.error(
                     Diagnostic::error(w.1, format!("the kernel spans {span} {what} but the input has {padded} (with padding)"))

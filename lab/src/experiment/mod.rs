@@ -641,7 +641,8 @@ mod tests {
             list => list.split(',').map(|f| (f.to_string(), std::fs::read_to_string(f).unwrap())).collect(),
         };
         for (name, source) in sources {
-            let learner = Learner { source: Box::leak(source.into_boxed_str()), ..LEARNERS[1] };
+            let shipped = LEARNERS.iter().find(|l| l.key == "gravity_spy").expect("the Gravity Spy-style learner");
+            let learner = Learner { source: Box::leak(source.into_boxed_str()), ..*shipped };
             for seed in 0..plan.seeds {
                 let val_only =
                     TestSets { standard: val.clone(), low_snr: val.head(1), shifted_psd: val.head(1), held_out_fits: val.head(1) };
