@@ -22,7 +22,7 @@ pub struct QPeak {
     pub time: f64,
     /// Its row's frequency (Hz).
     pub frequency: f64,
-    /// Its median-normalised energy.
+    /// Its normalised energy.
     pub energy: f64,
 }
 
@@ -66,7 +66,21 @@ pub struct ImageOptions {
     pub frequencies: usize,
 }
 
-/// The Q-transform of whitened data: every tile's median-normalised energy.
+/// How a [`QTransform`] normalises tile energies; either way a tile of
+/// Gaussian noise has median 1.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TileNorm {
+    /// By each row's median over the data (gwpy's `norm='median'`, the Omega
+    /// scan's): right for a stretch much longer than its glitches.
+    #[default]
+    Median,
+    /// By the median the row has in unit-variance white noise: for whitened
+    /// data too short for a median to be the noise's, where a glitch may fill
+    /// a whole row (a 2 s Scratchy in 1 s of data).
+    WhiteNoise,
+}
+
+/// The Q-transform of whitened data: every tile's normalised energy.
 pub struct QTransform {
     tiling: QTiling,
     /// `energies[plane][row][tile]`.
@@ -76,8 +90,13 @@ pub struct QTransform {
 
 impl QTransform {
     /// Transforms whitened data `x` sampled at `sample_rate` from GPS
-    /// `gps_start`, tiled as `options` says.
+    /// `gps_start`, tiled as `options` says, energies median-normalised.
     pub fn new(x: &[f64], sample_rate: f64, gps_start: f64, options: &QOptions) -> Result<QTransform, Error> {
+        QTransform::with_norm(x, sample_rate, gps_start, options, TileNorm::Median)
+    }
+
+    /// [`QTransform::new`] with the energies normalised as `norm` says.
+    pub fn with_norm(x: &[f64], sample_rate: f64, gps_start: f64, options: &QOptions, norm: TileNorm) -> Result<QTransform, Error> {
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
             return Err(Error::Data(format!(
                 "the Q-transform's input has a non-finite sample at GPS {:.4}",
@@ -89,7 +108,11 @@ impl QTransform {
         let fft = RealFftPlanner::<f64>::new().plan_fft_forward(x.len());
         let mut spectrum = fft.make_output_vec();
         fft.process(&mut input, &mut spectrum).map_err(|e| Error::Data(format!("FFT failed: {e}")))?;
-        let energies = tiling.planes.iter().map(|p| p.rows.iter().map(|r| r.energies(&spectrum)).collect()).collect();
+        let row_energies = |r: &crate::qtransform::QRow| match norm {
+            TileNorm::Median => r.energies(&spectrum),
+            TileNorm::WhiteNoise => r.energies_over_white_noise(&spectrum, x.len()),
+        };
+        let energies = tiling.planes.iter().map(|p| p.rows.iter().map(row_energies).collect()).collect();
         Ok(QTransform { tiling, energies, gps_start })
     }
 

@@ -98,6 +98,43 @@ impl QRow {
     /// and saves most of the selection). With `single`, the inverse FFT runs
     /// in f32 (relative error ~1e-7 on energies, twice the speed).
     pub fn energies_into(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, out: &mut Vec<f64>, median_stride: usize, single: bool) {
+        self.raw_energies_into(spectrum, buffers, out, single);
+        buffers.sample.clear();
+        buffers.sample.extend(out.iter().step_by(median_stride.max(1)));
+        let med = median(&mut buffers.sample);
+        if med > 0.0 {
+            let inv = 1.0 / med;
+            out.iter_mut().for_each(|e| *e *= inv);
+        }
+    }
+
+    /// Tile energies of whitened data normalised by the median they would
+    /// have in unit-variance white noise, from the unnormalised spectrum of
+    /// `samples` samples: noise has median 1 as with [`QRow::energies`], but
+    /// a glitch that fills the whole row (a long Scratchy's carrier in a
+    /// short segment) keeps its energy instead of setting the median.
+    pub fn energies_over_white_noise(&self, spectrum: &[Complex64], samples: usize) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.raw_energies_into(spectrum, &mut RowBuffers::default(), &mut out, false);
+        let median = self.white_noise_mean(spectrum.len(), samples) * LN_2;
+        if median > 0.0 {
+            out.iter_mut().for_each(|e| *e /= median);
+        }
+        out
+    }
+
+    /// The mean raw tile energy of unit-variance white noise of `samples`
+    /// samples: each unnormalised spectrum bin has `E|X_k|² = samples`, and
+    /// the unnormalised inverse FFT sums the windowed bins, so the mean is
+    /// `samples Σ W²` over the window's bins that the spectrum (of
+    /// `bins` bins) holds.
+    fn white_noise_mean(&self, bins: usize, samples: usize) -> f64 {
+        let held = bins.saturating_sub(self.first_bin).min(self.window.len());
+        samples as f64 * self.window[..held].iter().map(|w| w * w).sum::<f64>()
+    }
+
+    /// Unnormalised tile energies `|c_j|²` of the row's filter output.
+    fn raw_energies_into(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, out: &mut Vec<f64>, single: bool) {
         let n = self.tiles;
         let w = self.window.len();
         // Pad the windowed band symmetrically to n points and rotate its
@@ -130,13 +167,6 @@ impl QRow {
             buffers.scratch.resize(self.fft.get_inplace_scratch_len(), Complex64::new(0.0, 0.0));
             self.fft.process_with_scratch(buf, &mut buffers.scratch);
             out.extend(buf.iter().map(|c| c.norm_sqr()));
-        }
-        buffers.sample.clear();
-        buffers.sample.extend(out.iter().step_by(median_stride.max(1)));
-        let med = median(&mut buffers.sample);
-        if med > 0.0 {
-            let inv = 1.0 / med;
-            out.iter_mut().for_each(|e| *e *= inv);
         }
     }
 }
@@ -469,6 +499,51 @@ mod tests {
         assert!((f / f0 - 1.0).abs() < 0.15, "peak frequency {f}");
         assert!((0.8 * snr..=1.1 * snr).contains(&rho), "tile SNR {rho} for an injected {snr}");
         assert!((4.0..=23.0).contains(&bq), "Q {bq}");
+    }
+
+    /// Normalised by white noise's level, unit-variance noise has mean
+    /// `1/ln 2` (median 1) in every row, as by its own median; a tone
+    /// filling the whole segment sets its row's own median, but not white
+    /// noise's.
+    #[test]
+    fn white_noise_normalisation_matches_the_median_in_noise_and_keeps_a_row_filling_tone() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let (fs, duration) = (1024.0, 16.0);
+        let n = (fs * duration) as usize;
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        let mut x: Vec<f64> = (0..n).map(|_| StandardNormal.sample(&mut rng)).collect();
+        let tiling = QTiling::new(duration, fs, &QOptions { f_range: (20.0, 500.0), ..Default::default() }).unwrap();
+        let spec = spectrum(&x);
+        let rows: Vec<&QRow> = tiling.planes.iter().flat_map(|p| &p.rows).collect();
+        // Each row's mean of z ln 2 (a row of few independent tiles, at low
+        // frequency and high Q, scatters by tens of percent).
+        let means: Vec<f64> = rows
+            .iter()
+            .map(|row| {
+                let e = row.energies_over_white_noise(&spec, n);
+                e.iter().map(|z| z * LN_2).sum::<f64>() / e.len() as f64
+            })
+            .collect();
+        let mean = means.iter().sum::<f64>() / means.len() as f64;
+        assert!((mean - 1.0).abs() < 0.03, "mean over rows {mean}");
+        assert!(means.iter().all(|r| (0.5..2.0).contains(r)), "{means:?}");
+        // A 200 Hz tone of amplitude 1 (energy per sample ½ against noise's 1).
+        x.iter_mut().enumerate().for_each(|(j, v)| *v += (TAU * 200.0 * j as f64 / fs).sin());
+        let spec = spectrum(&x);
+        let row = rows.iter().min_by(|a, b| (a.frequency - 200.0).abs().total_cmp(&(b.frequency - 200.0).abs())).unwrap();
+        let (mut by_median, mut by_noise) = (row.energies(&spec), row.energies_over_white_noise(&spec, n));
+        let (m, w) = (median(&mut by_median), median(&mut by_noise));
+        assert!((m - 1.0).abs() < 1e-12, "a row's median-normalised median is 1: {m}");
+        // Over white noise, the tone's tiles stand at its bin's |X|² = (n/2)²
+        // through the window, over noise's median n Σ W² ln 2 (plus the
+        // noise's own ~1, and the tone's beat with it).
+        let k = (200.0 * duration) as usize - row.first_bin;
+        let expected = (n as f64 / 2.0 * row.window[k]).powi(2) / (n as f64 * row.window.iter().map(|w| w * w).sum::<f64>() * LN_2);
+        assert!(
+            expected > 10.0 && (w / (expected + 1.0) - 1.0).abs() < 0.15,
+            "the tone's median over white noise's {w}, expected {expected}"
+        );
     }
 
     #[test]

@@ -627,13 +627,19 @@ mod tests {
     /// Design of the Gravity Spy-style CNN, on the validation split only:
     /// trains each `.gw` file named in `GWML_QCNN` (comma-separated; the
     /// shipped one by default) on the `--quick` reference set with the
-    /// `--quick` budget, two seeds, and prints validation accuracy.
+    /// `--quick` budget, two seeds, and prints validation accuracy;
+    /// `GWML_QNORM=median` normalises the images' rows by their own median.
     #[test]
     #[ignore = "design: GWML_QCNN=A.gw,B.gw prints each variant's validation accuracy"]
     fn gravity_spy_variants_on_the_validation_split() {
         let plan = Plan::new(true);
         let draw = |n, seed| glitches(&GlitchOptions { n, seed, snr: SNR, ..Default::default() }).unwrap();
-        let images = |d: &Dataset| qimages::q_images(d, SAMPLE_RATE, 2).unwrap();
+        // GWML_QNORM=median draws the images with each row's own median.
+        let norm = match std::env::var("GWML_QNORM").as_deref() {
+            Ok("median") => gwml_strain::qimage::TileNorm::Median,
+            _ => qimages::NORM,
+        };
+        let images = |d: &Dataset| qimages::q_images_with(d, SAMPLE_RATE, 2, norm).unwrap();
         let (train, val) = (images(&draw(plan.reference, TRAIN_SEED)), images(&draw(plan.val, VAL_SEED)));
         let files = std::env::var("GWML_QCNN").unwrap_or_default();
         let sources: Vec<(String, String)> = match files.as_str() {
