@@ -13,7 +13,9 @@
 //! bisquare window `(1 − (ν Q' / f)²)²`, `Q' = Q/√11`, and an inverse FFT
 //! of `2^⌈log2(2π f T/(Q Δ))⌉` points gives its tiles in time. Energies are
 //! normalised by the row's median: in Gaussian noise a tile's energy is
-//! exponential, so its median-normalised energy `Z` has mean `1/ln 2`.
+//! exponential, so its median-normalised energy `Z` has mean `1/ln 2`
+//! (or, for whitened data too short for the median to be the noise's, by
+//! the median unit-variance white noise would give the row).
 
 use crate::psd::median;
 use num_complex::{Complex32, Complex64};
