@@ -3,9 +3,10 @@
 //! 2017; Bahaadini et al. 2018): Q 4–64 from 10 Hz, one image per view
 //! duration, centred on the loudest tile. Gravity Spy's images reach
 //! 2048 Hz from 16 kHz data; at 4096 Hz gwpy's tiling stops at 1.29 kHz,
-//! where the lowest plane's (Q 5.7) bisquare window meets Nyquist. Gravity Spy's views are 0.5, 1,
-//! 2 and 4 s; an example here holds 1 s, so the views are the 0.5 s and
-//! 1 s ones ([`DURATIONS`]), stacked as two channels of one image.
+//! where the lowest plane's (Q 5.7) bisquare window meets Nyquist.
+//! Gravity Spy's views are 0.5, 1, 2 and 4 s; an example here holds 1 s,
+//! so the views are the 0.5 s and 1 s ones ([`DURATIONS`]), stacked as two
+//! channels of one image.
 //!
 //! Gravity Spy's Omega scans normalise each row by its median over a long
 //! stretch, where a glitch is a small part; the median of one second is
