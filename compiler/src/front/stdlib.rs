@@ -6,6 +6,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("antenna", include_str!("../../../stdlib/antenna.gw")),
     ("burst", include_str!("../../../stdlib/burst.gw")),
     ("chirp", include_str!("../../../stdlib/chirp.gw")),
+    ("constrained", include_str!("../../../stdlib/constrained.gw")),
     ("detector", include_str!("../../../stdlib/detector.gw")),
     ("glitch", include_str!("../../../stdlib/glitch.gw")),
     ("nn", include_str!("../../../stdlib/nn.gw")),
