@@ -9,9 +9,12 @@
 //!    a Gravity Spy-style 2-D CNN on Q-transform images of it
 //!    (`lab/models/glitch/gravity_spy.gw`, images from [`qimages`]);
 //! 3. the differentiable model: a trainable template bank feeding a small
-//!    network, trained end to end (`lab/models/glitch/template_net.gw`);
-//!    and its ablation, the same model with the physics front end frozen at
-//!    its initial templates (only the head trains), at the reference size.
+//!    network behind a learned noise component (a PSD correction, positive
+//!    and smooth by construction), trained end to end
+//!    (`lab/models/glitch/template_net.gw`); and two ablations at the
+//!    reference size: the template params frozen at their initial values
+//!    (the learned components train), and the PSD correction replaced by an
+//!    unconstrained per-bin one.
 //!
 //! Training sets of several sizes (prefixes of one seed's draw) give the
 //! learning curves; validation, test and the three shifted test sets (lower
@@ -65,6 +68,9 @@ const TEST_SEED: u64 = 3;
 const LOW_SNR_SEED: u64 = 4;
 const SHIFTED_PSD_SEED: u64 = 5;
 const HELD_OUT_FITS_SEED: u64 = 6;
+/// A validation draw with the shifted PSD, for design only (never scored).
+#[cfg(test)]
+const VAL_SHIFTED_PSD_SEED: u64 = 7;
 
 /// The standard SNRs (each class's own range), and the one range of the
 /// low-SNR generalisation check.
@@ -146,11 +152,35 @@ struct Learner {
     source: &'static str,
     lr: f64,
     batch: usize,
-    /// Train only the `head` (the ablation: template params stay at their
-    /// initial values), and only at the reference size.
-    frozen_front_end: bool,
+    /// The shipped model, or one of its ablations (trained only at the
+    /// reference size).
+    variant: Variant,
     /// What the model reads.
     input: Input,
+}
+
+/// Which form of a learner's model is trained.
+#[derive(Clone, Copy, PartialEq)]
+enum Variant {
+    /// The `.gw` file as written.
+    Shipped,
+    /// The template params stay at their initial values
+    /// ([`frozen_front_end`]).
+    FrozenFrontEnd,
+    /// The constrained noise component replaced by its unconstrained
+    /// version ([`unconstrained`]).
+    Unconstrained,
+}
+
+impl Variant {
+    /// The source this variant trains.
+    fn source(self, shipped: &str) -> Result<String, String> {
+        match self {
+            Variant::Shipped => Ok(shipped.to_string()),
+            Variant::FrozenFrontEnd => frozen_front_end(shipped),
+            Variant::Unconstrained => unconstrained(shipped),
+        }
+    }
 }
 
 /// A learner's input.
@@ -162,15 +192,15 @@ enum Input {
     QImages,
 }
 
-const LEARNERS: [Learner; 4] = [
-    Learner { key: "cnn", title: "CNN", source: CNN_SOURCE, lr: 3e-3, batch: 32, frozen_front_end: false, input: Input::Strain },
+const LEARNERS: [Learner; 5] = [
+    Learner { key: "cnn", title: "CNN", source: CNN_SOURCE, lr: 3e-3, batch: 32, variant: Variant::Shipped, input: Input::Strain },
     Learner {
         key: "gravity_spy",
         title: "Gravity Spy-style CNN on Q-scans",
         source: GRAVITY_SPY_SOURCE,
         lr: 3e-3,
         batch: 32,
-        frozen_front_end: false,
+        variant: Variant::Shipped,
         input: Input::QImages,
     },
     Learner {
@@ -179,7 +209,7 @@ const LEARNERS: [Learner; 4] = [
         source: TEMPLATE_NET_SOURCE,
         lr: 3e-3,
         batch: 32,
-        frozen_front_end: false,
+        variant: Variant::Shipped,
         input: Input::Strain,
     },
     Learner {
@@ -188,18 +218,42 @@ const LEARNERS: [Learner; 4] = [
         source: TEMPLATE_NET_SOURCE,
         lr: 3e-3,
         batch: 32,
-        frozen_front_end: true,
+        variant: Variant::FrozenFrontEnd,
+        input: Input::Strain,
+    },
+    Learner {
+        key: "template_net_unconstrained",
+        title: "Unconstrained PSD correction (ablation)",
+        source: TEMPLATE_NET_SOURCE,
+        lr: 3e-3,
+        batch: 32,
+        variant: Variant::Unconstrained,
         input: Input::Strain,
     },
 ];
 
-/// `source` with its `grad loss wrt [...]` list cut to `head`: the template
-/// params keep their declared values while the head trains.
+/// `source` with the params cut from its `grad loss wrt [...]` list: the
+/// template params keep their declared values while the learned
+/// components (the head, the noise component) train.
 fn frozen_front_end(source: &str) -> Result<String, String> {
     // The last one: the file's comments mention the statement too.
     let start = source.rfind("grad loss wrt [").ok_or("the template net has no `grad loss wrt [...]`")? + "grad loss wrt [".len();
     let end = start + source[start..].find(']').ok_or("unclosed `grad loss wrt [`")?;
-    Ok(format!("{}head{}", &source[..start], &source[end..]))
+    let learned: Vec<&str> =
+        source[start..end].split(',').map(str::trim).filter(|name| !source.contains(&format!("param {name} "))).collect();
+    Ok(format!("{}{}{}", &source[..start], learned.join(", "), &source[end..]))
+}
+
+/// `source` with its scene's `psd_correction` (positive and smooth by
+/// construction, `std::constrained`) replaced by `psd_correction_free`,
+/// the file's unconstrained version of it.
+fn unconstrained(source: &str) -> Result<String, String> {
+    let scene = source.find("\nscene ").ok_or("the template net has no scene")?;
+    let (head, body) = source.split_at(scene);
+    if !head.contains("learned psd_correction_free(") || !body.contains("psd_correction(") {
+        return Err("the template net has no `psd_correction` call and `psd_correction_free` component".into());
+    }
+    Ok(format!("{head}{}", body.replace("psd_correction(", "psd_correction_free(").replace("psd_correction]", "psd_correction_free]")))
 }
 
 /// The test sets every method is scored on.
@@ -292,7 +346,7 @@ fn run_plan(o: &GlitchExperiment, plan: &Plan) -> Result<(), String> {
     let strain = Splits { train, val, tests };
     for learner in &LEARNERS {
         let data = if learner.input == Input::QImages { &q_splits } else { &strain };
-        for &n in plan.sizes.iter().filter(|n| !learner.frozen_front_end || **n == plan.reference) {
+        for &n in plan.sizes.iter().filter(|n| learner.variant == Variant::Shipped || **n == plan.reference) {
             let subset = data.train.head(n);
             for seed in 0..plan.seeds {
                 scored.push(run_learner(learner, plan, &subset, &data.val, &data.tests, o.threads, seed)?);
@@ -345,7 +399,7 @@ fn run_learner(
     let t0 = Instant::now();
     let n = train.examples().map_err(render)?;
     let epochs = plan.epochs(n, l.batch);
-    let source = if l.frozen_front_end { frozen_front_end(l.source)? } else { l.source.to_string() };
+    let source = l.variant.source(l.source)?;
     let model = Model::from_source(&format!("lab/models/glitch/{}.gw", l.key), &source).map_err(render)?;
     let scene = model.scene(None).map_err(render)?;
     let steps_per_epoch = n.div_ceil(l.batch) as u64;
@@ -393,8 +447,8 @@ fn run_learner(
         .iter()
         .filter_map(|p| trainer.param(&p.name).map(|v| format!("{} = {v:.4} (from {:.4})", p.name, p.default.unwrap_or(f64::NAN))))
         .collect();
-    let trained_params = if l.frozen_front_end {
-        Some("template params frozen at their initial values; only the head trains".to_string())
+    let trained_params = if l.variant == Variant::FrozenFrontEnd {
+        Some("template params frozen at their initial values; only the learned components train".to_string())
     } else {
         (!params.is_empty()).then(|| params.join(", "))
     };
@@ -613,50 +667,80 @@ fn write_results(
 mod tests {
     use super::*;
 
-    /// The ablation's source trains only the head.
+    /// The frozen ablation's source trains only the learned components.
     #[test]
-    fn the_frozen_front_end_trains_only_the_head() {
+    fn the_frozen_front_end_trains_only_the_learned_components() {
         let frozen = frozen_front_end(TEMPLATE_NET_SOURCE).unwrap();
         let model = Model::from_source("frozen.gw", &frozen).unwrap();
         let scene = model.scene(None).unwrap();
         assert!(scene.ir().grads.is_empty(), "no template param is differentiated: {:?}", scene.ir().grads);
-        assert!(!scene.ir().input_grads.is_empty(), "the head's weights are");
+        let trained: Vec<&str> = scene.ir().input_grads.iter().map(|g| scene.ir().inputs[g.input].name.as_str()).collect();
+        assert!(trained.iter().any(|w| w.starts_with("head.")), "the head's weights are: {trained:?}");
+        assert!(trained.iter().any(|w| w.starts_with("psd_correction.")), "so are the noise component's: {trained:?}");
         assert!(frozen_front_end("scene s {}").is_err());
     }
 
-    /// Design of the Gravity Spy-style CNN, on the validation split only:
-    /// trains each `.gw` file named in `GWML_QCNN` (comma-separated; the
-    /// shipped one by default) on the `--quick` reference set with the
-    /// `--quick` budget, two seeds, and prints validation accuracy;
-    /// `GWML_QNORM=median` normalises the images' rows by their own median.
+    /// The unconstrained ablation trains the file's free correction in
+    /// place of `std::constrained`'s, and nothing else changes.
     #[test]
-    #[ignore = "design: GWML_QCNN=A.gw,B.gw prints each variant's validation accuracy"]
-    fn gravity_spy_variants_on_the_validation_split() {
-        let plan = Plan::new(true);
-        let draw = |n, seed| glitches(&GlitchOptions { n, seed, snr: SNR, ..Default::default() }).unwrap();
-        // GWML_QNORM=median draws the images with each row's own median.
-        let norm = match std::env::var("GWML_QNORM").as_deref() {
-            Ok("median") => gwml_strain::qimage::TileNorm::Median,
-            _ => qimages::NORM,
+    fn the_unconstrained_ablation_swaps_only_the_psd_correction() {
+        let free = unconstrained(TEMPLATE_NET_SOURCE).unwrap();
+        let weights = |src: &str| -> Vec<String> {
+            let model = Model::from_source("t.gw", src).unwrap();
+            let scene = model.scene(None).unwrap();
+            scene.ir().inputs.iter().filter(|i| i.is_weight()).map(|i| i.name.clone()).collect()
         };
-        let images = |d: &Dataset| qimages::q_images_with(d, SAMPLE_RATE, 2, norm).unwrap();
-        let (train, val) = (images(&draw(plan.reference, TRAIN_SEED)), images(&draw(plan.val, VAL_SEED)));
-        let files = std::env::var("GWML_QCNN").unwrap_or_default();
+        let (shipped, ablation) = (weights(TEMPLATE_NET_SOURCE), weights(&free));
+        assert!(shipped.contains(&"psd_correction.w".to_string()), "{shipped:?}");
+        assert!(ablation.contains(&"psd_correction_free.w".to_string()) && !ablation.iter().any(|w| w.starts_with("psd_correction.")));
+        let others = |w: &[String]| w.iter().filter(|n| !n.starts_with("psd_correction")).cloned().collect::<Vec<_>>();
+        assert_eq!(others(&shipped), others(&ablation));
+        assert!(unconstrained("scene s {}").is_err());
+    }
+
+    /// Design of a learner, on validation splits only: trains each `.gw`
+    /// file named in `GWML_MODELS` (comma-separated; the shipped one by
+    /// default) as learner `GWML_LEARNER` (`gravity_spy` by default) on the
+    /// `--quick` reference set with the `--quick` budget, two seeds, and
+    /// prints accuracy on the validation split and on a validation draw
+    /// with the shifted PSD (seed [`VAL_SHIFTED_PSD_SEED`], not a test
+    /// set's); `GWML_QNORM=median` normalises Q-scan rows by their own
+    /// median.
+    #[test]
+    #[ignore = "design: GWML_LEARNER=template_net GWML_MODELS=A.gw,B.gw prints each variant's validation accuracy"]
+    fn learner_variants_on_the_validation_split() {
+        let plan = Plan::new(true);
+        let key = std::env::var("GWML_LEARNER").unwrap_or_else(|_| "gravity_spy".into());
+        let shipped = LEARNERS.iter().find(|l| l.key == key).unwrap_or_else(|| panic!("no learner `{key}`"));
+        let draw = |n, seed, psd_knee| glitches(&GlitchOptions { n, seed, snr: SNR, psd_knee, ..Default::default() }).unwrap();
+        let (mut train, mut val, mut shifted) =
+            (draw(plan.reference, TRAIN_SEED, 0.0), draw(plan.val, VAL_SEED, 0.0), draw(plan.val, VAL_SHIFTED_PSD_SEED, SHIFTED_PSD_KNEE));
+        if shipped.input == Input::QImages {
+            // GWML_QNORM=median draws the images with each row's own median.
+            let norm = match std::env::var("GWML_QNORM").as_deref() {
+                Ok("median") => gwml_strain::qimage::TileNorm::Median,
+                _ => qimages::NORM,
+            };
+            let images = |d: &Dataset| qimages::q_images_with(d, SAMPLE_RATE, 2, norm).unwrap();
+            (train, val, shifted) = (images(&train), images(&val), images(&shifted));
+        }
+        let files = std::env::var("GWML_MODELS").unwrap_or_default();
         let sources: Vec<(String, String)> = match files.as_str() {
-            "" => vec![("shipped".into(), GRAVITY_SPY_SOURCE.into())],
+            "" => vec![("shipped".into(), shipped.source.into())],
             list => list.split(',').map(|f| (f.to_string(), std::fs::read_to_string(f).unwrap())).collect(),
         };
         for (name, source) in sources {
-            let shipped = LEARNERS.iter().find(|l| l.key == "gravity_spy").expect("the Gravity Spy-style learner");
             let learner = Learner { source: Box::leak(source.into_boxed_str()), ..*shipped };
             for seed in 0..plan.seeds {
                 let val_only =
-                    TestSets { standard: val.clone(), low_snr: val.head(1), shifted_psd: val.head(1), held_out_fits: val.head(1) };
+                    TestSets { standard: val.clone(), low_snr: val.head(1), shifted_psd: shifted.clone(), held_out_fits: val.head(1) };
                 let s = run_learner(&learner, &plan, &train, &val, &val_only, 2, seed).unwrap();
                 println!(
-                    "{name}, seed {seed}: validation accuracy {} %, macro P/R {}",
+                    "{name}, seed {seed}: validation accuracy {} % (shifted PSD {} %), macro P/R {} (shifted PSD {})",
                     percent(s.confusions[0].accuracy()),
-                    macro_line(&s.confusions[0])
+                    percent(s.confusions[2].accuracy()),
+                    macro_line(&s.confusions[0]),
+                    macro_line(&s.confusions[2])
                 );
             }
         }
@@ -673,29 +757,29 @@ mod tests {
         let o = GlitchExperiment { quick: true, out: out.clone(), threads: 2 };
         run_plan(&o, &plan).unwrap();
         let read = |name: &str| std::fs::read_to_string(out.join(name)).unwrap();
-        // Rules, then each learner and the ablation at the reference size
+        // Rules, then each learner and the two ablations at the reference size
         // (the largest), over two seeds (mean ± sd).
         let summary = read("summary.csv");
-        assert_eq!(summary.lines().count(), 1 + 5, "{summary}");
-        assert_eq!(summary.lines().filter(|l| l.contains(" ± ") && l.contains(",2,")).count(), 4, "{summary}");
+        assert_eq!(summary.lines().count(), 1 + 6, "{summary}");
+        assert_eq!(summary.lines().filter(|l| l.contains(" ± ") && l.contains(",2,")).count(), 5, "{summary}");
         for method in ["Rule-based filtering", "CNN,", "Gravity Spy-style CNN on Q-scans", "template bank"] {
             assert!(summary.contains(method), "{method}: {summary}");
         }
-        // Eight classes for each of the five methods.
-        assert_eq!(read("per_class.csv").lines().count(), 1 + 5 * 8);
+        // Eight classes for each of the six methods.
+        assert_eq!(read("per_class.csv").lines().count(), 1 + 6 * 8);
         // A row per true class for each method, a column per predicted class.
         let confusion = read("confusion.csv");
-        assert_eq!(confusion.lines().count(), 1 + 5 * 8);
+        assert_eq!(confusion.lines().count(), 1 + 6 * 8);
         assert!(confusion.lines().all(|l| l.split(',').count() == 3 + 8), "{confusion}");
         // A probe row per feature: energy, time of peak (all classes, short
         // ones), seven bands.
         assert_eq!(read("leak_probe.csv").lines().count(), 1 + 10);
         // Four test sets for each method.
-        assert_eq!(read("generalisation.csv").lines().count(), 1 + 5 * 4);
-        // Two sizes for each learner, the ablation at the reference size,
-        // each over two seeds.
+        assert_eq!(read("generalisation.csv").lines().count(), 1 + 6 * 4);
+        // Two sizes for each learner, the two ablations at the reference
+        // size, each over two seeds.
         let curve = read("learning_curve.csv");
-        assert_eq!(curve.lines().count(), 1 + 3 * 2 + 1);
+        assert_eq!(curve.lines().count(), 1 + 3 * 2 + 2);
         assert!(curve.lines().skip(1).all(|l| l.contains(",2,")), "{curve}");
         for png in [
             "learning_curve.png",
@@ -704,6 +788,7 @@ mod tests {
             "confusion_gravity_spy.png",
             "confusion_template_net.png",
             "confusion_template_net_frozen.png",
+            "confusion_template_net_unconstrained.png",
         ] {
             let bytes = std::fs::read(out.join(png)).unwrap();
             assert!(bytes.starts_with(b"\x89PNG"), "{png} is not a PNG");
