@@ -86,36 +86,45 @@ impl Completer for ReplHelper {
     type Candidate = Pair;
     fn complete(&self, line: &str, pos: usize, _: &Context<'_>) -> rustyline::Result<(usize, Vec<Pair>)> {
         let start = line[..pos].rfind(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':')).map(|i| i + 1).unwrap_or(0);
-        let word = &line[start..pos];
-        let mut cands: Vec<String> = self.names.borrow().clone();
-        cands.extend(gwml::compiler::check::BUILTINS.iter().map(|b| b.0.to_string()));
-        cands.extend(gwml::compiler::check::CONSTANTS.iter().map(|c| c.name.to_string()));
-        cands.extend(gwml::compiler::front::units::UNITS.iter().map(|u| u.name.to_string()));
-        for (file, text) in gwml::compiler::front::stdlib::FILES {
-            cands.push(format!("std::{file}"));
-            cands.extend(
-                text.lines()
-                    .filter_map(|l| l.strip_prefix("module "))
-                    .map(|rest| rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>()),
-            );
-        }
-        cands.extend(
-            ["let", "param", "knob", "grid", "input", "module", "learned", "weight", "use", "wrt", "frequencies", "times", "index"]
-                .iter()
-                .map(|s| s.to_string()),
-        );
-        if start == 0 {
-            cands.extend(COMMANDS.iter().map(|c| c.0.to_string()));
-        }
-        cands.sort();
-        cands.dedup();
-        let pairs = cands
+        let pairs = completions(&line[start..pos], start == 0, &self.names.borrow())
             .into_iter()
-            .filter(|c| c.starts_with(word) && !word.is_empty())
             .map(|c| Pair { display: c.clone(), replacement: c })
             .collect();
         Ok((start, pairs))
     }
+}
+
+/// The names, builtins, constants, units, standard-library modules and
+/// learned components, keywords and (at the start of a line) commands that
+/// begin with `word`, sorted.
+fn completions(word: &str, line_start: bool, session_names: &[String]) -> Vec<String> {
+    if word.is_empty() {
+        return Vec::new();
+    }
+    let mut cands: Vec<String> = session_names.to_vec();
+    cands.extend(gwml::compiler::check::BUILTINS.iter().map(|b| b.0.to_string()));
+    cands.extend(gwml::compiler::check::CONSTANTS.iter().map(|c| c.name.to_string()));
+    cands.extend(gwml::compiler::front::units::UNITS.iter().map(|u| u.name.to_string()));
+    for (file, text) in gwml::compiler::front::stdlib::FILES {
+        cands.push(format!("std::{file}"));
+        cands.extend(
+            text.lines()
+                .filter_map(|l| l.strip_prefix("module ").or_else(|| l.strip_prefix("learned ")))
+                .map(|rest| rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>()),
+        );
+    }
+    cands.extend(
+        ["let", "param", "knob", "grid", "input", "module", "learned", "weight", "use", "wrt", "frequencies", "times", "index"]
+            .iter()
+            .map(|s| s.to_string()),
+    );
+    if line_start {
+        cands.extend(COMMANDS.iter().map(|c| c.0.to_string()));
+    }
+    cands.retain(|c| c.starts_with(word));
+    cands.sort();
+    cands.dedup();
+    cands
 }
 
 impl Hinter for ReplHelper {
@@ -594,5 +603,20 @@ fn format_value(v: &Value, f: &Function, unit: &str) -> String {
             let last = a.last().map(c).unwrap_or_default();
             format!("{grid}, {} values{u}: {} … {last}; |z| from {lo:.6e} to {hi:.6e}", a.len(), head.join(", "))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::completions;
+
+    #[test]
+    fn completion_offers_stdlib_modules_learned_components_and_session_names() {
+        let session = vec!["my_chirp".to_string()];
+        assert_eq!(completions("psd_corr", false, &session), vec!["psd_correction".to_string()]);
+        assert!(completions("octave_b", false, &session).contains(&"octave_bump".to_string()));
+        assert_eq!(completions("my_", false, &session), vec!["my_chirp".to_string()]);
+        assert!(completions("std::constr", false, &session).contains(&"std::constrained".to_string()));
+        assert!(completions("", false, &session).is_empty());
     }
 }
