@@ -5,7 +5,7 @@
 # the glitch experiment's differentiable template bank + head, its best
 # method: results/glitch/README.md).
 #
-#     bash scripts/ship_glitch_classifier.sh            # ~15 minutes on 2 cores
+#     bash scripts/ship_glitch_classifier.sh            # ~30 minutes on 2 cores (181 s an epoch)
 #
 # Data: `gwml data glitch --centred`: the benchmark population of eight
 # classes (lab/src/synth/population.rs: shapes, SNR ranges and noise after
