@@ -36,9 +36,13 @@ impl Block {
 }
 
 /// The blocks of runs with extents `spans`, in time order: `seconds` long,
-/// overlapping by twice the margin, and no last block too short to whiten
-/// (the one before it reaches the run's end instead).
+/// overlapping by twice the margin, and no last block shorter than a PSD
+/// stretch (the one before it reaches the run's end instead): a block's
+/// PSD is estimated from its own samples, and a 32 s remainder of a
+/// 4,096 s file, whitened by a 32 s estimate, made 2-5 loud excess-power
+/// triggers in Gaussian noise.
 pub fn plan_blocks(spans: &[Span], seconds: f64, options: &ScanOptions) -> Vec<Block> {
+    let shortest = options.min_segment().max(options.psd_stretch);
     let mut blocks = Vec::new();
     for (run, span) in spans.iter().enumerate() {
         let fs = span.sample_rate;
@@ -49,7 +53,7 @@ pub fn plan_blocks(spans: &[Span], seconds: f64, options: &ScanOptions) -> Vec<B
         while starts[starts.len() - 1] + block < n {
             starts.push(starts[starts.len() - 1] + block - overlap);
         }
-        if starts.len() > 1 && ((n - starts[starts.len() - 1]) as f64) < options.min_segment() * fs + overlap as f64 {
+        if starts.len() > 1 && ((n - starts[starts.len() - 1]) as f64) < shortest * fs + overlap as f64 {
             starts.pop();
         }
         for (k, &start) in starts.iter().enumerate() {
@@ -257,6 +261,12 @@ mod tests {
         }
         assert!(!first[0].open.0 && !last.open.1);
         assert!(last.length as f64 / 16.0 >= options.min_segment());
+        // 4,096 s in 1,024 s blocks would leave a 32 s remainder: the block
+        // before it takes it, so every block holds a whole PSD stretch.
+        let long = plan_blocks(&[span(4096)], 1024.0, &options);
+        assert_eq!(long.len(), 4);
+        assert!(long.iter().all(|b| b.length as f64 / 16.0 >= options.psd_stretch), "{long:?}");
+        assert_eq!(long[3].start + long[3].length, 4096 * 16);
         let second: Vec<&Block> = blocks.iter().filter(|b| b.run == 1).collect();
         assert_eq!(second.len(), 1);
         assert_eq!((second[0].start, second[0].length, second[0].open), (0, 1600, (false, false)));

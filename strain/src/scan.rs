@@ -28,16 +28,24 @@ use realfft::RealFftPlanner;
 use std::collections::BTreeMap;
 use std::f64::consts::{LN_2, PI};
 
-/// Durations (s) over which tile energies are summed as excess power.
-const EXCESS_POWER_WINDOWS: [f64; 4] = [0.125, 0.25, 0.5, 1.0];
-
-/// Excess power is summed in the planes up to this Q: long glitches spread
-/// their energy (Scratchy's arches, a Whistle's sweep). Q 22.6 is included
-/// for the slow part of a Whistle's sweep: it found 1.0-1.5 % more of the
-/// injections of `gwml data strain` files (seeds 42-44; most of them
-/// Whistles at SNR 9-12) for 0.02-0.07 more noise triggers per 100 s
+/// Durations (s) over which tile energies are summed as excess power, in
+/// every Q plane: long glitches spread their energy (Scratchy's arches, a
+/// Whistle's sweep), and a narrow row of the Q 45 plane holds a Scratchy's
+/// carrier for its whole 1-2.5 s. The 2 s window and the Q 45 plane found
+/// 1.3-1.5 % more of the injections of `gwml data strain` files (seed 42:
+/// 94.2 → 95.2 %, mostly Scratchies at SNR 8-12), with
+/// [`EXCESS_POWER_MAX_DOF`] keeping the noise triggers where they were
 /// (README, "Scanning real strain").
-const EXCESS_POWER_MAX_Q: f64 = 23.0;
+const EXCESS_POWER_WINDOWS: [f64; 5] = [0.125, 0.25, 0.5, 1.0, 2.0];
+
+/// A window is summed only where it holds at most this many independent
+/// tiles' worth of noise (`window / τ_c`). In a broad row over a long
+/// window (a 1 s sum at 1.2 kHz and Q 5.7 holds ~700) noise spreads the sum
+/// so far that only a glitch of SNR ≳ 17 could pass, and such a glitch is
+/// louder still in a shorter window or a narrower row; those windows only
+/// added trials: capping them at 150 (a glitch of SNR ≳ 12 can pass)
+/// halved the noise triggers above SNR 8 and lost no injection.
+const EXCESS_POWER_MAX_DOF: f64 = 150.0;
 
 /// The relative variance of a Welch median PSD estimate per frequency bin
 /// is about this over the number of segments K: the median of K
@@ -50,6 +58,22 @@ const EXCESS_POWER_MAX_Q: f64 = 23.0;
 /// 128 s one without it).
 const PSD_MEDIAN_SPREAD: f64 = 2.8;
 
+/// Tile energies are normalised by the median of every this-many-th tile
+/// of their row in the chunk ([`crate::qtransform::QRow::energies_into`]).
+const MEDIAN_STRIDE: usize = 8;
+
+/// The relative variance of a row's median-normalised energy level is
+/// about this over the number of tiles the median is taken from: the
+/// sample median of M exponential values has variance 1/M around ln 2,
+/// i.e. 1/(M ln²2) ≈ 2.08/M relative. An excess-power sum of ν
+/// independent tiles' worth of noise carries that error ν times, so its
+/// variance is ν (1 + 2.08 ν/M) instead of ν: it matters where ν is a
+/// sizeable fraction of M, in long windows over broad rows and in the
+/// narrow rows of the Q 45 plane (few tiles per chunk). With it, noise
+/// triggers above SNR 8 fell from 0.59-0.61 to 0.44-0.49 per 100 s
+/// (before [`EXCESS_POWER_MAX_DOF`]; noise seeds 42 and 43).
+const MEDIAN_LEVEL_SPREAD: f64 = 1.0 / (LN_2 * LN_2);
+
 /// Scan settings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScanOptions {
@@ -57,10 +81,9 @@ pub struct ScanOptions {
     pub snr_threshold: f64,
     /// A trigger's most significant tile must also be this significant
     /// (see [`Threshold`]): the false-alarm control for excess-power windows.
-    /// 5.5 by default: in Gaussian noise ~0.45 triggers per 100 s (issue #23
-    /// allows 1 above SNR 8), where 6.0 made 0.15 and missed a third of the
-    /// long glitches (Scratchy, Whistle) at optimal SNR 8–12, and 5.3 made
-    /// 0.86 (README, "Scanning real strain").
+    /// 5.5 by default: in Gaussian noise 0.34-0.39 triggers per 100 s above
+    /// SNR 8 (issue #23 allows 1), where 5.4 made 0.49-0.59 for one more
+    /// injection found in ~1,200 (README, "Scanning real strain").
     pub min_significance: f64,
     /// Tiles this significant join clusters (they extend a trigger in time and frequency).
     pub tile_threshold: f64,
@@ -404,7 +427,7 @@ impl Scanner {
         let z_pass = (1.0 + 0.5 * o.tile_threshold * o.tile_threshold) / LN_2;
         for plane in &prep.tiling.planes {
             for row in &plane.rows {
-                row.energies_into(&spectrum, &mut buffers, &mut energies, 8, true);
+                row.energies_into(&spectrum, &mut buffers, &mut energies, MEDIAN_STRIDE, true);
                 let dt = duration / row.tiles as f64;
                 let bandwidth = 2.0 * PI.sqrt() * row.frequency / row.q;
                 let kept = |t: f64| t >= keep_from && t < keep_to;
@@ -419,24 +442,23 @@ impl Scanner {
                         tiles.push(Tile { time: t0 + t, frequency: row.frequency, q: row.q, snr, significance: snr, duration, bandwidth });
                     }
                 }
-                if plane.q > EXCESS_POWER_MAX_Q {
-                    continue;
-                }
                 // Excess power over windows of several durations.
                 let tau = row.correlation_time();
+                let median_tiles = energies.len().div_ceil(MEDIAN_STRIDE) as f64;
                 prefix.resize(energies.len() + 1, 0.0);
                 let mut acc = 0.0;
                 for (sum, z) in prefix[1..].iter_mut().zip(&energies) {
                     acc += z * LN_2 - 1.0;
                     *sum = acc;
                 }
-                for &window in EXCESS_POWER_WINDOWS.iter().filter(|w| **w >= 4.0 * tau) {
+                for &window in EXCESS_POWER_WINDOWS.iter().filter(|w| **w >= 4.0 * tau && **w <= EXCESS_POWER_MAX_DOF * tau) {
                     let n = (window / dt).round() as usize;
                     if n < 2 || n >= energies.len() {
                         continue;
                     }
                     let stride = ((window / 4.0) / dt).round().max(1.0) as usize;
-                    let excess = ExcessPower::new(dt, tau * noise_inflation, n as f64 * dt, o.tile_threshold);
+                    let level_spread = MEDIAN_LEVEL_SPREAD * (n as f64 * dt / tau) / median_tiles;
+                    let excess = ExcessPower::new(dt, tau * (noise_inflation + level_spread), n as f64 * dt, o.tile_threshold);
                     let fails_below = failing_sums.get(&excess);
                     for s in (0..energies.len() - n).step_by(stride) {
                         let sum = prefix[s + n] - prefix[s];
@@ -448,12 +470,14 @@ impl Scanner {
                             continue;
                         }
                         if let Some((snr, significance)) = excess.test(sum) {
-                            // The time of the excess energy around the window
-                            // (finer than its stride, and centred on a long
-                            // glitch whose envelope is flatter than the window).
+                            // The time of the excess energy within the window,
+                            // iterated (finer than its stride, and centred on
+                            // a long glitch whose envelope is flatter than the
+                            // window). Over ±window, a 2 s window's centroid
+                            // reached a loud neighbour 2 s away.
                             let mut time = centre;
                             for _ in 0..3 {
-                                time = excess_centroid(&energies, dt, time - window, time + window).unwrap_or(time);
+                                time = excess_centroid(&energies, dt, time - 0.5 * window, time + 0.5 * window).unwrap_or(time);
                             }
                             tiles.push(Tile {
                                 time: t0 + time,
