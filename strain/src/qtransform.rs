@@ -137,39 +137,43 @@ impl QRow {
 
     /// Unnormalised tile energies `|c_j|²` of the row's filter output.
     fn raw_energies_into(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, out: &mut Vec<f64>, single: bool) {
-        let n = self.tiles;
-        let w = self.window.len();
-        // Pad the windowed band symmetrically to n points and rotate its
-        // centre to index 0 (numpy's ifftshift) so the output is the
-        // baseband envelope.
-        let left = (n - w) / 2;
-        let band = self
-            .window
-            .iter()
-            .enumerate()
-            .map(|(i, weight)| ((left + i + n - n / 2) % n, spectrum.get(self.first_bin + i).copied().unwrap_or_default() * weight));
         out.clear();
         if single {
             let buf = &mut buffers.values32;
-            buf.clear();
-            buf.resize(n, Complex32::new(0.0, 0.0));
-            for (k, v) in band {
-                buf[k] = Complex32::new(v.re as f32, v.im as f32);
-            }
+            self.band_into(spectrum, buf, |v| Complex32::new(v.re as f32, v.im as f32));
             buffers.scratch32.resize(self.fft32.get_inplace_scratch_len(), Complex32::new(0.0, 0.0));
             self.fft32.process_with_scratch(buf, &mut buffers.scratch32);
             out.extend(buf.iter().map(|c| f64::from(c.norm_sqr())));
         } else {
             let buf = &mut buffers.values;
-            buf.clear();
-            buf.resize(n, Complex64::new(0.0, 0.0));
-            for (k, v) in band {
-                buf[k] = v;
-            }
+            self.band_into(spectrum, buf, |v| v);
             buffers.scratch.resize(self.fft.get_inplace_scratch_len(), Complex64::new(0.0, 0.0));
             self.fft.process_with_scratch(buf, &mut buffers.scratch);
             out.extend(buf.iter().map(|c| c.norm_sqr()));
         }
+    }
+
+    /// The windowed band padded symmetrically to `tiles` points with its
+    /// centre rotated to index 0 (numpy's ifftshift), so the inverse FFT
+    /// gives the baseband envelope: the band is written in (at most) two
+    /// runs and only the rest is zeroed.
+    fn band_into<T: Copy + Default>(&self, spectrum: &[Complex64], buf: &mut Vec<T>, convert: impl Fn(Complex64) -> T) {
+        let (n, w) = (self.tiles, self.window.len());
+        buf.resize(n, T::default());
+        let start = ((n - w) / 2 + n - n / 2) % n;
+        let value = |i: usize| convert(spectrum.get(self.first_bin + i).copied().unwrap_or_default() * self.window[i]);
+        let first = w.min(n - start);
+        for (i, slot) in buf[start..start + first].iter_mut().enumerate() {
+            *slot = value(i);
+        }
+        for (i, slot) in buf[..w - first].iter_mut().enumerate() {
+            *slot = value(first + i);
+        }
+        // The n − w points outside the band, from just after it, cyclically.
+        let gap = (start + w) % n;
+        let tail = (n - w).min(n - gap);
+        buf[gap..gap + tail].fill(T::default());
+        buf[..n - w - tail].fill(T::default());
     }
 }
 
