@@ -37,12 +37,13 @@ impl Block {
 
 /// The blocks of runs with extents `spans`, in time order: `seconds` long,
 /// overlapping by twice the margin, and no last block shorter than a PSD
-/// stretch (the one before it reaches the run's end instead): a block's
-/// PSD is estimated from its own samples, and a 32 s remainder of a
-/// 4,096 s file, whitened by a 32 s estimate, made 2-5 loud excess-power
-/// triggers in Gaussian noise.
+/// stretch or half a block, whichever is less (the one before it reaches
+/// the run's end instead): a block's PSDs are estimated from its own
+/// samples, and a 32 s remainder of a 4,096 s file in 1,024 s blocks,
+/// whitened by a 32 s estimate, made 2-5 loud excess-power triggers in
+/// Gaussian noise.
 pub fn plan_blocks(spans: &[Span], seconds: f64, options: &ScanOptions) -> Vec<Block> {
-    let shortest = options.min_segment().max(options.psd_stretch);
+    let shortest = options.min_segment().max(options.psd_stretch.min(0.5 * seconds));
     let mut blocks = Vec::new();
     for (run, span) in spans.iter().enumerate() {
         let fs = span.sample_rate;
@@ -267,6 +268,10 @@ mod tests {
         assert_eq!(long.len(), 4);
         assert!(long.iter().all(|b| b.length as f64 / 16.0 >= options.psd_stretch), "{long:?}");
         assert_eq!(long[3].start + long[3].length, 4096 * 16);
+        // Blocks shorter than a PSD stretch (the user's choice) keep a
+        // remainder of most of a block: 224 s in 64 s blocks ends in 56 s.
+        let short = plan_blocks(&[span(224)], 64.0, &options);
+        assert_eq!(short.iter().map(|b| b.length / 16).collect::<Vec<_>>(), [64, 64, 64, 56]);
         let second: Vec<&Block> = blocks.iter().filter(|b| b.run == 1).collect();
         assert_eq!(second.len(), 1);
         assert_eq!((second[0].start, second[0].length, second[0].open), (0, 1600, (false, false)));
