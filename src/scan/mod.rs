@@ -363,9 +363,17 @@ pub fn scan(a: ScanArgs) -> Result<(), String> {
     // (GWOSC's usual rate) while MPI starts and the files are opened, the
     // blocks planned and this process's first one read.
     let (world, opened, scanner) = std::thread::scope(|scope| {
+        // The classifier and the whitening scene take about as long to
+        // compile: each on its own thread.
         let compiling = scope.spawn(|| {
-            let scanner = classifier(&a).and_then(|c| Scanner::new(options.clone(), c).map_err(|e| format!("error: {e}")))?;
-            let _ = scanner.warm_up(a.input.sample_rate.unwrap_or(4096.0));
+            let mut scanner = Scanner::new(options.clone(), None).map_err(|e| format!("error: {e}"))?;
+            scanner.expect_classifier_band(manifest(&a)?.map(|m| m.band_hz));
+            let (c, _) = std::thread::scope(|inner| {
+                let loading = inner.spawn(|| classifier(&a));
+                let warm = scanner.warm_up(a.input.sample_rate.unwrap_or(4096.0));
+                (loading.join().expect("the classifier's thread does not panic"), warm)
+            });
+            scanner.set_classifier(c?);
             Ok::<_, String>(scanner)
         });
         let world = World::new(a.mpi);

@@ -61,8 +61,8 @@ pub struct QRow {
     window: Vec<f64>,
     /// Tiles in time over the segment (the inverse FFT length).
     pub tiles: usize,
-    /// The segment's duration in seconds.
-    duration: f64,
+    /// [`QRow::correlation_time`], computed once.
+    correlation_time: f64,
     fft: Arc<dyn Fft<f64>>,
     /// The same inverse FFT in single precision, for scans.
     fft32: Arc<dyn Fft<f32>>,
@@ -74,9 +74,7 @@ impl QRow {
     /// `∫ W⁴ df / (∫ W² df)²` for the window `W`. Sums of energies over a
     /// time `D` hold `D / τ_c` independent tiles' worth of noise.
     pub fn correlation_time(&self) -> f64 {
-        let (w2, w4) = self.window.iter().fold((0.0, 0.0), |(a, b), w| (a + w * w, b + w.powi(4)));
-        // df = 1/T: (Σ W⁴ / T) / (Σ W² / T)².
-        self.duration * w4 / (w2 * w2)
+        self.correlation_time
     }
 
     /// Duration of a tile's Gaussian envelope, `Q / (2 √π f)` (the inverse
@@ -100,13 +98,24 @@ impl QRow {
     /// and saves most of the selection). With `single`, the inverse FFT runs
     /// in f32 (relative error ~1e-7 on energies, twice the speed).
     pub fn energies_into(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, out: &mut Vec<f64>, median_stride: usize, single: bool) {
-        self.raw_energies_into(spectrum, buffers, out, single);
-        buffers.sample.clear();
-        buffers.sample.extend(out.iter().step_by(median_stride.max(1)));
-        let med = median(&mut buffers.sample);
-        if med > 0.0 {
-            let inv = 1.0 / med;
-            out.iter_mut().for_each(|e| *e *= inv);
+        // The median from the transform's output directly, then one pass
+        // that writes the normalised energies.
+        let stride = median_stride.max(1);
+        self.transform(spectrum, buffers, single);
+        let RowBuffers { values, values32, sample, .. } = buffers;
+        sample.clear();
+        if single {
+            sample.extend(values32.iter().step_by(stride).map(|c| f64::from(c.norm_sqr())));
+        } else {
+            sample.extend(values.iter().step_by(stride).map(|c| c.norm_sqr()));
+        }
+        let med = median(sample);
+        let inv = if med > 0.0 { 1.0 / med } else { 1.0 };
+        out.clear();
+        if single {
+            out.extend(values32.iter().map(|c| f64::from(c.norm_sqr()) * inv));
+        } else {
+            out.extend(values.iter().map(|c| c.norm_sqr() * inv));
         }
     }
 
@@ -137,19 +146,28 @@ impl QRow {
 
     /// Unnormalised tile energies `|c_j|²` of the row's filter output.
     fn raw_energies_into(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, out: &mut Vec<f64>, single: bool) {
+        self.transform(spectrum, buffers, single);
         out.clear();
+        if single {
+            out.extend(buffers.values32.iter().map(|c| f64::from(c.norm_sqr())));
+        } else {
+            out.extend(buffers.values.iter().map(|c| c.norm_sqr()));
+        }
+    }
+
+    /// The row's complex filter output, left in `buffers.values32` (with
+    /// `single`) or `buffers.values`.
+    fn transform(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, single: bool) {
         if single {
             let buf = &mut buffers.values32;
             self.band_into(spectrum, buf, |v| Complex32::new(v.re as f32, v.im as f32));
             buffers.scratch32.resize(self.fft32.get_inplace_scratch_len(), Complex32::new(0.0, 0.0));
             self.fft32.process_with_scratch(buf, &mut buffers.scratch32);
-            out.extend(buf.iter().map(|c| f64::from(c.norm_sqr())));
         } else {
             let buf = &mut buffers.values;
             self.band_into(spectrum, buf, |v| v);
             buffers.scratch.resize(self.fft.get_inplace_scratch_len(), Complex64::new(0.0, 0.0));
             self.fft.process_with_scratch(buf, &mut buffers.scratch);
-            out.extend(buf.iter().map(|c| c.norm_sqr()));
         }
     }
 
@@ -265,14 +283,16 @@ impl QTiling {
                                 let x = k as f64 / duration * q_prime / frequency;
                                 (1.0 - x * x).powi(2) * norm
                             })
-                            .collect();
+                            .collect::<Vec<f64>>();
+                        // ∫ W⁴ df / (∫ W² df)² with df = 1/T.
+                        let (w2, w4) = window.iter().fold((0.0, 0.0), |(a, b), w| (a + w * w, b + w.powi(4)));
                         QRow {
                             frequency,
                             q,
                             first_bin: first,
                             window,
                             tiles,
-                            duration,
+                            correlation_time: duration * w4 / (w2 * w2),
                             fft: planner.plan_fft_inverse(tiles),
                             fft32: planner32.plan_fft_inverse(tiles),
                         }

@@ -20,11 +20,10 @@ use crate::psd::{Welch, WelchOptions};
 use crate::qtransform::{tile_snr, ExcessPower, QOptions, QTiling, RowBuffers};
 use crate::series::{good_segments, Segment, Series, SkipReason, Skipped};
 use crate::triggers::{absorbed_into, cluster, Threshold, Tile, Trigger};
-use crate::whitening::{whiten_with, WhitenOptions, Whitener};
+use crate::whitening::{whiten_spectrum_with, WhitenOptions, Whitener};
 use crate::Error;
 use gwml_runtime::Scene;
 use rayon::prelude::*;
-use realfft::RealFftPlanner;
 use std::collections::BTreeMap;
 use std::f64::consts::{LN_2, PI};
 
@@ -214,6 +213,8 @@ struct Chunk {
 pub struct Scanner {
     options: ScanOptions,
     classifier: Option<Classifier>,
+    /// The band of the whitened windows the classifier is given (Hz).
+    classifier_band: (f64, f64),
     whitener: Whitener,
     /// Compiled scenes and tilings by (sample rate in mHz, chunk samples).
     prepared: std::sync::Mutex<BTreeMap<(u64, usize), std::sync::Arc<Prepared>>>,
@@ -241,7 +242,27 @@ impl Scanner {
         if o.chunk.fract() != 0.0 || o.pad.fract() != 0.0 {
             return Err(Error::Data("chunk and pad lengths must be whole seconds".into()));
         }
-        Ok(Scanner { options, classifier, whitener: Whitener::new()?, prepared: Default::default() })
+        let classifier_band = classifier.as_ref().map_or(NO_CLASSIFIER_BAND, |c| c.manifest.band_hz);
+        Ok(Scanner { options, classifier, classifier_band, whitener: Whitener::new()?, prepared: Default::default() })
+    }
+
+    /// Replaces the classifier. With [`Scanner::expect_classifier_band`]
+    /// first, the whitening scenes can be compiled ([`Scanner::warm_up`])
+    /// while the classifier compiles on another thread. Scenes compiled for
+    /// another classifier band are dropped.
+    pub fn set_classifier(&mut self, classifier: Option<Classifier>) {
+        self.expect_classifier_band(classifier.as_ref().map(|c| c.manifest.band_hz));
+        self.classifier = classifier;
+    }
+
+    /// Sets the classifier band the whitening scenes are compiled for, ahead
+    /// of [`Scanner::set_classifier`] with a classifier of this band.
+    pub fn expect_classifier_band(&mut self, band: Option<(f64, f64)>) {
+        let band = band.unwrap_or(NO_CLASSIFIER_BAND);
+        if band != self.classifier_band {
+            self.prepared.get_mut().expect("no panics while locked").clear();
+            self.classifier_band = band;
+        }
     }
 
     /// The classifier, if any.
@@ -378,11 +399,13 @@ impl Scanner {
     fn prepare(&self, n: usize, fs: f64) -> Result<Prepared, Error> {
         let o = &self.options;
         let duration = n as f64 / fs;
-        let classifier_band = self.classifier.as_ref().map_or((20.0, 2000.0), |c| c.manifest.band_hz);
-        let whiten = self.whitener.scene(n, fs, &WhitenOptions { taper: o.pad / 2.0, band: o.f_range, classifier_band })?;
+        let whiten = self.whitener.spectrum_scene(
+            n,
+            fs,
+            &WhitenOptions { taper: o.pad / 2.0, band: o.f_range, classifier_band: self.classifier_band },
+        )?;
         let q = QOptions { q_range: o.q_range, f_range: o.f_range, mismatch: o.mismatch, smooth_sizes: true, plane_nyquist: true };
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
-        Ok(Prepared { whiten, tiling: QTiling::new(duration, fs, &q)?, fft })
+        Ok(Prepared { whiten, tiling: QTiling::new(duration, fs, &q)? })
     }
 
     fn scan_chunk(
@@ -410,13 +433,12 @@ impl Scanner {
         let noise_inflation = 1.0 + PSD_MEDIAN_SPREAD / welch.segments(b - a).max(1) as f64;
         clock.add(0, since);
         since = std::time::Instant::now();
-        let (w, w_clf) = whiten_with(run, x, &psd, (fs, series.gps_start + chunk.start as f64 / fs, &series.source))?;
+        // The whitened data's spectrum, tiled below (Q tiles are normalised
+        // by their rows' medians, so its scale does not matter).
+        let (spectrum, w_clf) = whiten_spectrum_with(run, x, &psd, (fs, series.gps_start + chunk.start as f64 / fs, &series.source))?;
         let duration = n as f64 / fs;
         clock.add(1, since);
         since = std::time::Instant::now();
-        let mut input = w.clone();
-        let mut spectrum = prep.fft.make_output_vec();
-        prep.fft.process(&mut input, &mut spectrum).map_err(|e| Error::Data(format!("FFT failed: {e}")))?;
         let t0 = series.gps_start + chunk.start as f64 / fs;
         let (keep_from, keep_to) = ((chunk.keep_from - chunk.start) as f64 / fs, (chunk.keep_to - chunk.start) as f64 / fs);
         let mut tiles = Vec::new();
@@ -431,26 +453,32 @@ impl Scanner {
                 let dt = duration / row.tiles as f64;
                 let bandwidth = 2.0 * PI.sqrt() * row.frequency / row.q;
                 let kept = |t: f64| t >= keep_from && t < keep_to;
-                for (j, z) in energies.iter().enumerate() {
-                    if *z < z_pass {
+                // The single tiles that pass: blocks of 16 are counted
+                // first (a vectorised compare) and few are looked into.
+                for (b, block) in energies.chunks(16).enumerate() {
+                    if block.iter().filter(|z| **z >= z_pass).count() == 0 {
                         continue;
                     }
-                    let t = j as f64 * dt;
-                    let snr = tile_snr(*z);
-                    if kept(t) {
-                        let duration = row.tile_duration();
-                        tiles.push(Tile { time: t0 + t, frequency: row.frequency, q: row.q, snr, significance: snr, duration, bandwidth });
+                    for (k, &z) in block.iter().enumerate().filter(|(_, z)| **z >= z_pass) {
+                        let t = (16 * b + k) as f64 * dt;
+                        if kept(t) {
+                            let (snr, duration) = (tile_snr(z), row.tile_duration());
+                            tiles.push(Tile {
+                                time: t0 + t,
+                                frequency: row.frequency,
+                                q: row.q,
+                                snr,
+                                significance: snr,
+                                duration,
+                                bandwidth,
+                            });
+                        }
                     }
                 }
                 // Excess power over windows of several durations.
                 let tau = row.correlation_time();
                 let median_tiles = energies.len().div_ceil(MEDIAN_STRIDE) as f64;
-                prefix.resize(energies.len() + 1, 0.0);
-                let mut acc = 0.0;
-                for (sum, z) in prefix[1..].iter_mut().zip(&energies) {
-                    acc += z * LN_2 - 1.0;
-                    *sum = acc;
-                }
+                excess_prefix_sums(&energies, &mut prefix);
                 for &window in EXCESS_POWER_WINDOWS.iter().filter(|w| **w >= 4.0 * tau && **w <= EXCESS_POWER_MAX_DOF * tau) {
                     let n = (window / dt).round() as usize;
                     if n < 2 || n >= energies.len() {
@@ -517,6 +545,31 @@ impl Scanner {
     }
 }
 
+/// The `w_clf` band of the whitening scene when no classifier reads it (Hz).
+const NO_CLASSIFIER_BAND: (f64, f64) = (20.0, 2000.0);
+
+/// Prefix sums of the mean-normalised excess energies `z ln 2 − 1` of a
+/// row into `prefix` (`prefix[j]` sums the first `j` tiles). Summed in
+/// blocks of four whose own running sums do not wait on the total, so the
+/// chain of dependent additions is a quarter as long.
+fn excess_prefix_sums(energies: &[f64], prefix: &mut Vec<f64>) {
+    prefix.resize(energies.len() + 1, 0.0);
+    prefix[0] = 0.0;
+    let mut total = 0.0;
+    let mut sums = prefix[1..].chunks_exact_mut(4);
+    let mut blocks = energies.chunks_exact(4);
+    for (sum, z) in (&mut sums).zip(&mut blocks) {
+        let e: [f64; 4] = std::array::from_fn(|i| z[i] * LN_2 - 1.0);
+        let (s1, s2) = (e[0] + e[1], e[2] + e[3]);
+        sum.copy_from_slice(&[total + e[0], total + s1, total + (s1 + e[2]), total + (s1 + s2)]);
+        total += s1 + s2;
+    }
+    for (sum, z) in sums.into_remainder().iter_mut().zip(blocks.remainder()) {
+        total += z * LN_2 - 1.0;
+        *sum = total;
+    }
+}
+
 /// The centroid in time of a row's strong excess energy (median-normalised
 /// energies `z`, every `dt` s) between `from` and `to` s: each tile weighted
 /// by how far its mean-normalised energy exceeds twice the noise mean, so
@@ -555,7 +608,6 @@ impl FailingSums {
 struct Prepared {
     whiten: std::sync::Arc<Scene>,
     tiling: QTiling,
-    fft: std::sync::Arc<dyn realfft::RealToComplex<f64>>,
 }
 
 /// Merges rows of neighbouring chunks (or blocks) where a trigger was cut by

@@ -8,6 +8,7 @@ use crate::series::Series;
 use crate::Error;
 use gwml_compiler::Options;
 use gwml_runtime::{Model, Scene, Value};
+use num_complex::Complex64;
 use std::sync::{Arc, Mutex};
 
 /// The whitening scene.
@@ -20,8 +21,9 @@ pub struct Whitener {
     compiled: Mutex<Vec<(SceneKey, Arc<Scene>)>>,
 }
 
-/// What a compiled whitening scene depends on.
-type SceneKey = (usize, u64, [u64; 5]);
+/// What a compiled whitening scene depends on (the last: whether it
+/// outputs `w_spectrum` instead of `w`).
+type SceneKey = (usize, u64, [u64; 5], bool);
 
 /// How a stretch is whitened.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,19 +45,30 @@ impl Whitener {
 
     /// The scene compiled for `n` samples at `sample_rate`: inputs `x` (the
     /// strain) and `psd` (on the `n / 2 + 1` bins of the chunk's spectrum),
-    /// outputs `w` and `w_clf`. Compiled on the first call with these
-    /// arguments, shared after.
+    /// outputs `w` and `w_clf` (read them with [`whiten_with`]). Compiled on
+    /// the first call with these arguments, shared after.
     pub fn scene(&self, n: usize, sample_rate: f64, o: &WhitenOptions) -> Result<Arc<Scene>, Error> {
-        let key = (n, sample_rate.to_bits(), [o.taper, o.band.0, o.band.1, o.classifier_band.0, o.classifier_band.1].map(f64::to_bits));
+        self.scene_for(n, sample_rate, o, false)
+    }
+
+    /// [`Whitener::scene`] with outputs `w_spectrum` (the spectrum of `w`)
+    /// and `w_clf`, read with [`whiten_spectrum_with`].
+    pub fn spectrum_scene(&self, n: usize, sample_rate: f64, o: &WhitenOptions) -> Result<Arc<Scene>, Error> {
+        self.scene_for(n, sample_rate, o, true)
+    }
+
+    fn scene_for(&self, n: usize, sample_rate: f64, o: &WhitenOptions, spectrum: bool) -> Result<Arc<Scene>, Error> {
+        let bands = [o.taper, o.band.0, o.band.1, o.classifier_band.0, o.classifier_band.1].map(f64::to_bits);
+        let key = (n, sample_rate.to_bits(), bands, spectrum);
         if let Some((_, scene)) = self.compiled.lock().expect("no thread panics holding it").iter().find(|(k, _)| *k == key) {
             return Ok(scene.clone());
         }
-        let scene = Arc::new(self.compile(n, sample_rate, o)?);
+        let scene = Arc::new(self.compile(n, sample_rate, o, spectrum)?);
         self.compiled.lock().expect("no thread panics holding it").push((key, scene.clone()));
         Ok(scene)
     }
 
-    fn compile(&self, n: usize, sample_rate: f64, o: &WhitenOptions) -> Result<Scene, Error> {
+    fn compile(&self, n: usize, sample_rate: f64, o: &WhitenOptions, spectrum: bool) -> Result<Scene, Error> {
         let duration = n as f64 / sample_rate;
         let knobs = [
             ("rate", format!("{sample_rate:?} Hz")),
@@ -66,7 +79,9 @@ impl Whitener {
             ("clf_low", format!("{:?} Hz", o.classifier_band.0)),
             ("clf_high", format!("{:?} Hz", o.classifier_band.1)),
         ];
-        let options = Options { knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(), ..Options::default() };
+        let outputs = [if spectrum { "w_spectrum" } else { "w" }, "w_clf"].map(str::to_string).to_vec();
+        let knobs = knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        let options = Options { knobs, outputs: Some(outputs), ..Options::default() };
         self.model.scene_with(None, options).map_err(|e| Error::Data(e.render(false)))
     }
 }
@@ -80,21 +95,58 @@ pub fn whiten_with(
     psd: &Psd,
     (fs, gps_start, source): (f64, f64, &str),
 ) -> Result<(Vec<f64>, Vec<f64>), Error> {
+    let mut out = forward(run, x, psd, fs)?;
+    let (w, w_clf) = (take_real(&mut out, "w")?, take_real(&mut out, "w_clf")?);
+    let n = x.len();
+    if let Some(i) = w.iter().chain(&w_clf).position(|v| !v.is_finite()) {
+        return Err(Error::Data(format!("whitening made a non-finite value at GPS {:.4} ({source})", gps_start + (i % n) as f64 / fs)));
+    }
+    Ok((w, w_clf))
+}
+
+/// [`whiten_with`] for a [`Whitener::spectrum_scene`]: `(spectrum of w,
+/// w_clf)`, the spectrum on the `n / 2 + 1` bins of the rfft.
+pub fn whiten_spectrum_with(
+    run: &mut gwml_runtime::Run,
+    x: &[f64],
+    psd: &Psd,
+    (fs, gps_start, source): (f64, f64, &str),
+) -> Result<(Vec<Complex64>, Vec<f64>), Error> {
+    let mut out = forward(run, x, psd, fs)?;
+    let w_clf = take_real(&mut out, "w_clf")?;
+    let spectrum = match out.values.iter_mut().find(|(n, _)| n == "w_spectrum") {
+        Some((_, Value::ComplexArray(v))) => std::mem::take(v),
+        _ => return Err(Error::Data("the whitening scene has no complex array `w_spectrum`".into())),
+    };
+    if let Some(i) = w_clf.iter().position(|v| !v.is_finite()) {
+        return Err(Error::Data(format!("whitening made a non-finite value at GPS {:.4} ({source})", gps_start + i as f64 / fs)));
+    }
+    if let Some(k) = spectrum.iter().position(|v| !(v.re.is_finite() && v.im.is_finite())) {
+        return Err(Error::Data(format!(
+            "whitening made a non-finite value at {:.2} Hz in the spectrum of GPS {gps_start:.1}+{:.0} s ({source})",
+            k as f64 * fs / x.len() as f64,
+            x.len() as f64 / fs
+        )));
+    }
+    Ok((spectrum, w_clf))
+}
+
+/// Binds `x` and `psd` (resampled onto the chunk's bins) and runs the scene.
+fn forward(run: &mut gwml_runtime::Run, x: &[f64], psd: &Psd, fs: f64) -> Result<gwml_runtime::Outputs, Error> {
     let n = x.len();
     let psd_grid = psd.resample(fs / n as f64, n / 2 + 1);
     let fail = |e: gwml_runtime::Error| Error::Data(format!("whitening failed: {}", e.render(false)));
     run.input_real("x", x).map_err(fail)?;
     run.input_real("psd", &psd_grid).map_err(fail)?;
-    let out = run.forward().map_err(fail)?;
-    let real = |name: &str| match out.value(name) {
-        Ok(Value::RealArray(v)) => Ok(v.clone()),
+    run.forward().map_err(fail)
+}
+
+/// Moves the real array output `name` out of `out`.
+fn take_real(out: &mut gwml_runtime::Outputs, name: &str) -> Result<Vec<f64>, Error> {
+    match out.values.iter_mut().find(|(n, _)| n == name) {
+        Some((_, Value::RealArray(v))) => Ok(std::mem::take(v)),
         _ => Err(Error::Data(format!("the whitening scene has no real array `{name}`"))),
-    };
-    let (w, w_clf) = (real("w")?, real("w_clf")?);
-    if let Some(i) = w.iter().chain(&w_clf).position(|v| !v.is_finite()) {
-        return Err(Error::Data(format!("whitening made a non-finite value at GPS {:.4} ({source})", gps_start + (i % n) as f64 / fs)));
     }
-    Ok((w, w_clf))
 }
 
 /// A whitened stretch of strain.
