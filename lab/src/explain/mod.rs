@@ -222,7 +222,7 @@ fn blip_starts(s: &Seed) -> Vec<Start> {
 // the blip in the glitch benchmark), and the blip is the loudest pixel
 // above that band, `lead` after the head.
 fn koi_fish_starts(s: &Seed) -> Vec<Start> {
-    let shape = |f0: &[f64], f_head: &[f64], lead: f64| grid(0.0, &[f0, &[1.5, 3.0], f_head, &[0.5, 2.0], &[lead], &[3.0], &[2.0]]);
+    let shape = |f0: &[f64], f_head: &[f64], lead: f64| grid(0.0, &[f0, &[1.5, 3.0], f_head, &[0.5, 2.0], &[lead], &[3.0], &[2.0], &[0.0]]);
     let at = |dt: f64, starts: Vec<Start>| starts.into_iter().map(move |(_, x)| (dt, x));
     match s.high {
         None => at(s.dt, shape(&scaled(s.frequency, [0.8, 1.0, 1.25]), &[20.0, 30.0, 45.0], 0.02)).collect(),

@@ -26,7 +26,7 @@ const HEADS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
 /// `fs` Hz): the head's time, frequency, Q and tail from the fit, and the
 /// [`BLIPS`] best sine-Gaussians in the residual `d − head.model` within
 /// the lead's range after it, each with a few head amplitudes. As
-/// `(dt, [f0, q, f_head, head, lead, q_head, tail])`.
+/// `(dt, [f0, q, f_head, head, lead, q_head, tail, drift])`.
 pub fn koi_fish_from_head(head: &FamilyFit, d: &[f64], fs: f64) -> Vec<Start> {
     let value = |name: &str| head.param(name).map(|p| p.value);
     let (Some(dt_head), Some(f_head), Some(q_head), Some(tail)) = (value("dt"), value("f0"), value("q"), value("asym")) else {
@@ -37,7 +37,7 @@ pub fn koi_fish_from_head(head: &FamilyFit, d: &[f64], fs: f64) -> Vec<Start> {
     }
     let residual: Vec<f64> = d.iter().zip(&head.model).map(|(d, m)| d - m).collect();
     let blips = loudest_blips(&residual, fs, (dt_head + LEAD.0, dt_head + LEAD.1), BLIPS);
-    blips.into_iter().flat_map(|(dt, f0, q)| HEADS.map(|ratio| (dt, vec![f0, q, f_head, ratio, dt - dt_head, q_head, tail]))).collect()
+    blips.into_iter().flat_map(|(dt, f0, q)| HEADS.map(|ratio| (dt, vec![f0, q, f_head, ratio, dt - dt_head, q_head, tail, 0.0]))).collect()
 }
 
 /// The `keep` best sine-Gaussian matches to `x` (at `fs` Hz) centred
