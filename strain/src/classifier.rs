@@ -17,7 +17,7 @@
 use crate::Error;
 use gwml_compiler::Options;
 use gwml_runtime::checkpoint::{self, Checkpoint};
-use gwml_runtime::{Model, Scene, Value};
+use gwml_runtime::{Model, Run, Scene, Value};
 use std::path::{Path, PathBuf};
 
 /// The name of the column holding the probability of `class` in trigger
@@ -182,10 +182,22 @@ impl Classifier {
 
     /// Classifies one window of whitened strain.
     pub fn classify(&self, window: &[f64]) -> Result<Verdict, Error> {
+        self.classify_with(&mut self.bind()?, window)
+    }
+
+    /// The classifier's scene bound with its weights, for
+    /// [`Classifier::classify_with`]: binding copies every weight, so a
+    /// scan binds once per worker rather than once per window.
+    pub fn bind(&self) -> Result<Run<'_>, Error> {
+        let mut run = self.scene.bind();
+        run.load_weights(&self.weights).map_err(|e| Error::file(&self.manifest.weights, e.render(false)))?;
+        Ok(run)
+    }
+
+    /// [`Classifier::classify`] with a run from [`Classifier::bind`].
+    pub fn classify_with(&self, run: &mut Run<'_>, window: &[f64]) -> Result<Verdict, Error> {
         let m = &self.manifest;
         let fail = |e: gwml_runtime::Error| Error::file(&m.model, e.render(false));
-        let mut run = self.scene.bind();
-        run.load_weights(&self.weights).map_err(|e| Error::file(&m.weights, e.render(false)))?;
         run.input_real(&m.input, window).map_err(fail)?;
         let out = run.forward().map_err(fail)?;
         let logits = match out.value(&m.output).map_err(fail)? {

@@ -350,11 +350,18 @@ impl Scanner {
         let results: Vec<Result<Vec<Row>, Error>> = chunks
             .par_iter()
             .map_init(
-                || prepared.iter().map(|(n, p)| (*n, p.whiten.bind())).collect::<BTreeMap<_, _>>(),
-                |runs, chunk| {
+                || {
+                    // Per worker: a whitening run per chunk length and a
+                    // classifier run (an error binding it is the first
+                    // window's, from `Classifier::classify`).
+                    let whitening = prepared.iter().map(|(n, p)| (*n, p.whiten.bind())).collect::<BTreeMap<_, _>>();
+                    (whitening, self.classifier.as_ref().and_then(|c| c.bind().ok()))
+                },
+                |(runs, classifier_run), chunk| {
                     let prep = &prepared[&chunk.samples];
                     let run = runs.get_mut(&chunk.samples).expect("a run per chunk length");
-                    let rows = self.scan_chunk(series, chunk, prep, run, (&welch, &failing_sums), &clock);
+                    let runs = (run, classifier_run.as_mut());
+                    let rows = self.scan_chunk(series, chunk, prep, runs, (&welch, &failing_sums), &clock);
                     progress((chunk.keep_to - chunk.keep_from) as f64 / fs);
                     rows
                 },
@@ -413,7 +420,7 @@ impl Scanner {
         series: &Series,
         chunk: &Chunk,
         prep: &Prepared,
-        run: &mut gwml_runtime::Run,
+        (run, mut classifier_run): (&mut gwml_runtime::Run, Option<&mut gwml_runtime::Run>),
         (welch, failing_sums): (&Welch, &FailingSums),
         clock: &StageClock,
     ) -> Result<Vec<Row>, Error> {
@@ -534,7 +541,11 @@ impl Scanner {
                         let len = c.manifest.window().min(n);
                         let centre = ((trigger.time - t0) * fs).round() as i64;
                         let start = (centre - len as i64 / 2).clamp(0, (n - len) as i64) as usize;
-                        Some(c.classify(&w_clf[start..start + len])?)
+                        let window = &w_clf[start..start + len];
+                        Some(match classifier_run.as_deref_mut() {
+                            Some(run) => c.classify_with(run, window)?,
+                            None => c.classify(window)?,
+                        })
                     }
                 };
                 Ok(Row { trigger, verdict })

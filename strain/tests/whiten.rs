@@ -62,3 +62,46 @@ fn noise_whitened_by_its_estimated_psd_is_white_with_the_band_s_variance() {
         assert!((level - 1.0).abs() < 0.1, "whitened PSD around {f} Hz is {level} of white");
     }
 }
+
+/// The scan tiles the scene's `w_spectrum` as the spectrum of `w`
+/// (`Whitener::spectrum_scene`): it must be the rfft of `w` in the
+/// stdlib's normalisation, `X = dt Σ x_j e^{-2πi f t_j}`, bin by bin, with
+/// the same `w_clf`.
+#[test]
+fn the_spectrum_scene_gives_the_rfft_of_the_whitened_series() {
+    use gwml_strain::whitening::{whiten_spectrum_with, whiten_with, WhitenOptions, Whitener};
+    use realfft::RealFftPlanner;
+    let (fs, duration) = (1024.0, 16.0);
+    let n = (fs * duration) as usize;
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+    let mut x = vec![0.0; n];
+    let mut prev = 0.0;
+    for v in x.iter_mut() {
+        let w: f64 = StandardNormal.sample(&mut rng);
+        prev = w + 0.9 * prev;
+        *v = 1e-21 * prev;
+    }
+    let psd = Welch::new(fs, WelchOptions::seconds(2.0, fs)).unwrap().estimate(&x).unwrap();
+    let whitener = Whitener::new().unwrap();
+    let o = WhitenOptions { taper: 1.0, band: (20.0, 400.0), classifier_band: (30.0, 300.0) };
+    let at = (fs, 1e9, "coloured noise");
+    let (w, w_clf) = whiten_with(&mut whitener.scene(n, fs, &o).unwrap().bind(), &x, &psd, at).unwrap();
+    let (spectrum, w_clf_too) = whiten_spectrum_with(&mut whitener.spectrum_scene(n, fs, &o).unwrap().bind(), &x, &psd, at).unwrap();
+    assert_eq!(spectrum.len(), n / 2 + 1);
+    let largest = w_clf.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (a, b) in w_clf.iter().zip(&w_clf_too) {
+        assert!((a - b).abs() <= 1e-12 * largest, "w_clf differs between the scenes: {a} against {b}");
+    }
+    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let (mut input, mut want) = (w.clone(), fft.make_output_vec());
+    fft.process(&mut input, &mut want).unwrap();
+    let peak = spectrum.iter().fold(0.0f64, |m, c| m.max(c.norm()));
+    assert!(peak > 0.0, "an empty spectrum");
+    for (k, (got, rfft)) in spectrum.iter().zip(&want).enumerate() {
+        let expected = rfft / fs;
+        assert!((got - expected).norm() <= 1e-9 * peak, "bin {k} ({} Hz): {got} against {expected}", k as f64 / duration);
+        if (k as f64) / duration < 20.0 || (k as f64) / duration > 400.0 {
+            assert!(got.norm() <= 1e-12 * peak, "bin {k} outside the band holds {got}");
+        }
+    }
+}
