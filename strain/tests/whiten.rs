@@ -8,20 +8,26 @@ use gwml_strain::psd::{Average, Welch, WelchOptions};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
+/// Coloured noise at strain scale: white noise through
+/// `x_j = w_j + pole x_{j-1}`, seeded.
+fn red_noise(n: usize, pole: f64, seed: u64) -> Vec<f64> {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+    let mut prev = 0.0;
+    (0..n)
+        .map(|_| {
+            let w: f64 = StandardNormal.sample(&mut rng);
+            prev = w + pole * prev;
+            1e-21 * prev
+        })
+        .collect()
+}
+
 #[test]
 fn noise_whitened_by_its_estimated_psd_is_white_with_the_band_s_variance() {
     let (fs, duration, band) = (1024.0, 32.0, (20.0, 400.0));
     let n = (fs * duration) as usize;
-    // Coloured noise: white noise through x_j = w_j + 0.95 x_{j-1} (a
-    // red spectrum spanning 30 dB), at strain scale.
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(17);
-    let mut x = vec![0.0; n];
-    let mut prev = 0.0;
-    for v in x.iter_mut() {
-        let w: f64 = StandardNormal.sample(&mut rng);
-        prev = w + 0.95 * prev;
-        *v = 1e-21 * prev;
-    }
+    // A red spectrum spanning 30 dB.
+    let x = red_noise(n, 0.95, 17);
     let psd = Welch::new(fs, WelchOptions::seconds(4.0, fs)).unwrap().estimate(&x).unwrap();
     let source = include_str!("../models/whiten.gw");
     let knobs = [
@@ -73,14 +79,7 @@ fn the_spectrum_scene_gives_the_rfft_of_the_whitened_series() {
     use realfft::RealFftPlanner;
     let (fs, duration) = (1024.0, 16.0);
     let n = (fs * duration) as usize;
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
-    let mut x = vec![0.0; n];
-    let mut prev = 0.0;
-    for v in x.iter_mut() {
-        let w: f64 = StandardNormal.sample(&mut rng);
-        prev = w + 0.9 * prev;
-        *v = 1e-21 * prev;
-    }
+    let x = red_noise(n, 0.9, 5);
     let psd = Welch::new(fs, WelchOptions::seconds(2.0, fs)).unwrap().estimate(&x).unwrap();
     let whitener = Whitener::new().unwrap();
     let o = WhitenOptions { taper: 1.0, band: (20.0, 400.0), classifier_band: (30.0, 300.0) };
