@@ -111,6 +111,11 @@ pub struct Options {
     /// Verify the IR after every pass, as debug builds and `GWML_VERIFY=1`
     /// do (`gwml compile --verify`).
     pub verify: bool,
+    /// Params fixed at compile time (name, value in the declared unit):
+    /// each becomes a constant and leaves the scene's params, so what it
+    /// alone determines is folded into tables. A scan's classifier freezes
+    /// its trained template params this way.
+    pub frozen_params: Vec<(String, f64)>,
 }
 
 /// Instruction counts and times of each stage, for `gwml compile --stats`.
@@ -285,6 +290,7 @@ impl Program {
             }
             checked.retain_outputs(|o| keep.contains(&o.name));
         }
+        checked.freeze_params(&opts.frozen_params).map_err(PipelineError::Scene)?;
         run_passes(checked, verify_after_passes(&opts))
     }
 }

@@ -160,8 +160,19 @@ impl Classifier {
             let names = model.program.scene_names();
             (names.len() > 1).then(|| "classify".to_string())
         });
-        // Only the logits: a training scene's loss and gradient are not needed.
-        let options = Options { outputs: Some(vec![manifest.output.clone()]), ..Options::default() };
+        // Only the logits: a training scene's loss and gradient are not
+        // needed. The trained params are fixed for a classifier's life, so
+        // they are compiled in as constants: what they alone determine
+        // (the template bank's spectra) becomes tables instead of work on
+        // every window.
+        let params = &model.program.scene_ir(scene_name.as_deref()).map_err(|e| Error::file(&manifest.model, e))?.params;
+        let frozen_params = weights
+            .tensors
+            .iter()
+            .filter(|t| t.shape.is_empty() && params.iter().any(|p| p.name == t.name))
+            .map(|t| (t.name.clone(), t.data[0]))
+            .collect();
+        let options = Options { outputs: Some(vec![manifest.output.clone()]), frozen_params, ..Options::default() };
         let scene = model.scene_with(scene_name.as_deref(), options).map_err(compile)?;
         let classifier = Classifier { manifest, scene, weights };
         // One trial run checks the input's length, the output's and the weights.
@@ -178,6 +189,11 @@ impl Classifier {
             ));
         }
         Ok(classifier)
+    }
+
+    /// The compiled scene (its trained params are constants in it).
+    pub fn scene(&self) -> &Scene {
+        &self.scene
     }
 
     /// Classifies one window of whitened strain.

@@ -253,6 +253,58 @@ impl Function {
         self.input_grads.retain_mut(|g| new_index[g.output].map(|n| g.output = n).is_some());
     }
 
+    /// Makes each named param (value in its declared unit) a constant
+    /// and drops it from [`Function::params`], so that what it alone
+    /// determines folds at compile time (a trained classifier's template
+    /// spectra become `passes::specialise` tables). Errors name an unknown
+    /// param, a value that is not finite, and a param some gradient is
+    /// requested with respect to.
+    pub fn freeze_params(&mut self, values: &[(String, f64)]) -> Result<(), String> {
+        let mut frozen: Vec<Option<f64>> = vec![None; self.params.len()];
+        for (name, value) in values {
+            let Some(k) = self.params.iter().position(|p| &p.name == name) else {
+                let names: Vec<&str> = self.params.iter().map(|p| p.name.as_str()).collect();
+                return Err(format!("scene `{}` has no param `{name}` to freeze; params: {}", self.name, names.join(", ")));
+            };
+            if !value.is_finite() {
+                return Err(format!("cannot freeze param `{name}` at {value}: not finite"));
+            }
+            if self.grads.iter().any(|g| g.param == k) {
+                return Err(format!("cannot freeze param `{name}`: a gradient with respect to it is requested"));
+            }
+            frozen[k] = Some(value * self.params[k].scale);
+        }
+        // Each kept param's new index.
+        let mut kept = 0u32;
+        let new_index: Vec<Option<u32>> = frozen
+            .iter()
+            .map(|f| {
+                f.is_none().then(|| {
+                    kept += 1;
+                    kept - 1
+                })
+            })
+            .collect();
+        for inst in &mut self.insts {
+            if let Op::Param(k) = inst.op {
+                inst.op = match (frozen[k as usize], new_index[k as usize]) {
+                    (Some(v), _) => Op::Const(v.to_bits()),
+                    (None, Some(n)) => Op::Param(n),
+                    (None, None) => unreachable!("a param is either frozen or kept"),
+                };
+            }
+        }
+        for g in &mut self.grads {
+            g.param = new_index[g.param].expect("gradients of frozen params were refused") as usize;
+        }
+        let mut k = 0;
+        self.params.retain(|_| {
+            k += 1;
+            frozen[k - 1].is_none()
+        });
+        Ok(())
+    }
+
     /// Grid `g`.
     pub fn grid(&self, g: GridId) -> &Grid {
         &self.grids[g.0 as usize]
