@@ -87,36 +87,32 @@ impl QRow {
     /// tile `j` at time `j T / tiles` from the segment's start), from the
     /// segment's one-sided spectrum (any normalisation: it cancels).
     pub fn energies(&self, spectrum: &[Complex64]) -> Vec<f64> {
-        let mut out = Vec::new();
-        self.energies_into(spectrum, &mut RowBuffers::default(), &mut out, 1, false);
-        out
+        let mut buffers = RowBuffers::default();
+        self.transform(spectrum, &mut buffers);
+        let raw: Vec<f64> = buffers.values.iter().map(|c| c.norm_sqr()).collect();
+        buffers.sample.clone_from(&raw);
+        let med = median(&mut buffers.sample);
+        let inv = if med > 0.0 { 1.0 / med } else { 1.0 };
+        raw.into_iter().map(|e| e * inv).collect()
     }
 
-    /// [`QRow::energies`] into `out`, reusing `buffers`, with the median
-    /// taken over every `median_stride`-th tile (neighbouring tiles overlap
-    /// heavily, so a stride of a few changes it by a fraction of a percent
-    /// and saves most of the selection). With `single`, the inverse FFT runs
-    /// in f32 (relative error ~1e-7 on energies, twice the speed).
-    pub fn energies_into(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, out: &mut Vec<f64>, median_stride: usize, single: bool) {
-        // The median from the transform's output directly, then one pass
-        // that writes the normalised energies.
-        let stride = median_stride.max(1);
-        self.transform(spectrum, buffers, single);
-        let RowBuffers { values, values32, sample, .. } = buffers;
+    /// [`QRow::energies`] for scans, read through the returned view: the
+    /// inverse FFT runs in f32 (relative error ~1e-7 on energies, twice
+    /// the speed) and the median is taken over every `median_stride`-th
+    /// tile (neighbouring tiles overlap heavily, so a stride of a few
+    /// changes it by a fraction of a percent and saves most of the
+    /// selection). No energy array is written: a scan reads each tile's
+    /// energy once, from the transform's output.
+    pub fn single_energies<'b>(&self, spectrum: &[Complex64], buffers: &'b mut RowBuffers, median_stride: usize) -> RowEnergies<'b> {
+        let buf = &mut buffers.values32;
+        self.band_into(spectrum, buf, |v| Complex32::new(v.re as f32, v.im as f32));
+        buffers.scratch32.resize(self.fft32.get_inplace_scratch_len(), Complex32::new(0.0, 0.0));
+        self.fft32.process_with_scratch(buf, &mut buffers.scratch32);
+        let RowBuffers { values32, sample, .. } = buffers;
         sample.clear();
-        if single {
-            sample.extend(values32.iter().step_by(stride).map(|c| f64::from(c.norm_sqr())));
-        } else {
-            sample.extend(values.iter().step_by(stride).map(|c| c.norm_sqr()));
-        }
+        sample.extend(values32.iter().step_by(median_stride.max(1)).map(|c| f64::from(c.norm_sqr())));
         let med = median(sample);
-        let inv = if med > 0.0 { 1.0 / med } else { 1.0 };
-        out.clear();
-        if single {
-            out.extend(values32.iter().map(|c| f64::from(c.norm_sqr()) * inv));
-        } else {
-            out.extend(values.iter().map(|c| c.norm_sqr() * inv));
-        }
+        RowEnergies { values: values32, scale: if med > 0.0 { 1.0 / med } else { 1.0 } }
     }
 
     /// Tile energies of whitened data normalised by the median they would
@@ -125,13 +121,11 @@ impl QRow {
     /// a glitch that fills the whole row (a long Scratchy's carrier in a
     /// short segment) keeps its energy instead of setting the median.
     pub fn energies_over_white_noise(&self, spectrum: &[Complex64], samples: usize) -> Vec<f64> {
-        let mut out = Vec::new();
-        self.raw_energies_into(spectrum, &mut RowBuffers::default(), &mut out, false);
+        let mut buffers = RowBuffers::default();
+        self.transform(spectrum, &mut buffers);
         let median = self.white_noise_mean(spectrum.len(), samples) * LN_2;
-        if median > 0.0 {
-            out.iter_mut().for_each(|e| *e /= median);
-        }
-        out
+        let inv = if median > 0.0 { 1.0 / median } else { 1.0 };
+        buffers.values.iter().map(|c| c.norm_sqr() * inv).collect()
     }
 
     /// The mean raw tile energy of unit-variance white noise of `samples`
@@ -144,31 +138,13 @@ impl QRow {
         samples as f64 * self.window[..held].iter().map(|w| w * w).sum::<f64>()
     }
 
-    /// Unnormalised tile energies `|c_j|²` of the row's filter output.
-    fn raw_energies_into(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, out: &mut Vec<f64>, single: bool) {
-        self.transform(spectrum, buffers, single);
-        out.clear();
-        if single {
-            out.extend(buffers.values32.iter().map(|c| f64::from(c.norm_sqr())));
-        } else {
-            out.extend(buffers.values.iter().map(|c| c.norm_sqr()));
-        }
-    }
-
-    /// The row's complex filter output, left in `buffers.values32` (with
-    /// `single`) or `buffers.values`.
-    fn transform(&self, spectrum: &[Complex64], buffers: &mut RowBuffers, single: bool) {
-        if single {
-            let buf = &mut buffers.values32;
-            self.band_into(spectrum, buf, |v| Complex32::new(v.re as f32, v.im as f32));
-            buffers.scratch32.resize(self.fft32.get_inplace_scratch_len(), Complex32::new(0.0, 0.0));
-            self.fft32.process_with_scratch(buf, &mut buffers.scratch32);
-        } else {
-            let buf = &mut buffers.values;
-            self.band_into(spectrum, buf, |v| v);
-            buffers.scratch.resize(self.fft.get_inplace_scratch_len(), Complex64::new(0.0, 0.0));
-            self.fft.process_with_scratch(buf, &mut buffers.scratch);
-        }
+    /// The row's complex filter output in double precision, left in
+    /// `buffers.values`.
+    fn transform(&self, spectrum: &[Complex64], buffers: &mut RowBuffers) {
+        let buf = &mut buffers.values;
+        self.band_into(spectrum, buf, |v| v);
+        buffers.scratch.resize(self.fft.get_inplace_scratch_len(), Complex64::new(0.0, 0.0));
+        self.fft.process_with_scratch(buf, &mut buffers.scratch);
     }
 
     /// The windowed band padded symmetrically to `tiles` points with its
@@ -195,7 +171,38 @@ impl QRow {
     }
 }
 
-/// Work buffers of [`QRow::energies_into`], reused from row to row.
+/// A row's median-normalised tile energies as [`QRow::single_energies`]
+/// leaves them: the filter output and the normalisation.
+pub struct RowEnergies<'b> {
+    values: &'b [Complex32],
+    scale: f64,
+}
+
+impl RowEnergies<'_> {
+    /// Number of tiles.
+    pub fn len(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Whether the row has no tiles.
+    pub fn is_empty(&self) -> bool {
+        self.values.is_empty()
+    }
+
+    /// Energy of tile `k`.
+    pub fn get(&self, k: usize) -> f64 {
+        f64::from(self.values[k].norm_sqr()) * self.scale
+    }
+
+    /// The energies of `N` tiles from `k` on.
+    #[inline(always)]
+    pub fn block<const N: usize>(&self, k: usize) -> [f64; N] {
+        let c = &self.values[k..k + N];
+        std::array::from_fn(|i| f64::from(c[i].norm_sqr()) * self.scale)
+    }
+}
+
+/// Work buffers of [`QRow::single_energies`], reused from row to row.
 #[derive(Default)]
 pub struct RowBuffers {
     values: Vec<Complex64>,

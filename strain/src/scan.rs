@@ -17,7 +17,7 @@
 
 use crate::classifier::{Classifier, Verdict};
 use crate::psd::{Welch, WelchOptions};
-use crate::qtransform::{tile_snr, ExcessPower, QOptions, QTiling, RowBuffers};
+use crate::qtransform::{tile_snr, ExcessPower, QOptions, QTiling, RowBuffers, RowEnergies};
 use crate::series::{good_segments, Segment, Series, SkipReason, Skipped};
 use crate::triggers::{absorbed_into, cluster, Threshold, Tile, Trigger};
 use crate::whitening::{whiten_spectrum_with, WhitenOptions, Whitener};
@@ -58,7 +58,7 @@ const EXCESS_POWER_MAX_DOF: f64 = 150.0;
 const PSD_MEDIAN_SPREAD: f64 = 2.8;
 
 /// Tile energies are normalised by the median of every this-many-th tile
-/// of their row in the chunk ([`crate::qtransform::QRow::energies_into`]).
+/// of their row in the chunk ([`crate::qtransform::QRow::single_energies`]).
 const MEDIAN_STRIDE: usize = 8;
 
 /// The relative variance of a row's median-normalised energy level is
@@ -450,26 +450,23 @@ impl Scanner {
         let (keep_from, keep_to) = ((chunk.keep_from - chunk.start) as f64 / fs, (chunk.keep_to - chunk.start) as f64 / fs);
         let mut tiles = Vec::new();
         let mut buffers = RowBuffers::default();
-        let mut energies = Vec::new();
         let mut prefix = Vec::new();
+        let mut passing = Vec::new();
         // A tile passes when tile_snr(z) ≥ threshold, i.e. z ≥ this.
         let z_pass = (1.0 + 0.5 * o.tile_threshold * o.tile_threshold) / LN_2;
         for plane in &prep.tiling.planes {
             for row in &plane.rows {
-                row.energies_into(&spectrum, &mut buffers, &mut energies, MEDIAN_STRIDE, true);
+                let energies = row.single_energies(&spectrum, &mut buffers, MEDIAN_STRIDE);
                 let dt = duration / row.tiles as f64;
                 let bandwidth = 2.0 * PI.sqrt() * row.frequency / row.q;
                 let kept = |t: f64| t >= keep_from && t < keep_to;
-                // The single tiles that pass: blocks of 16 are counted
-                // first (a vectorised compare) and few are looked into.
-                for (b, block) in energies.chunks(16).enumerate() {
-                    if block.iter().filter(|z| **z >= z_pass).count() == 0 {
-                        continue;
-                    }
-                    for (k, &z) in block.iter().enumerate().filter(|(_, z)| **z >= z_pass) {
-                        let t = (16 * b + k) as f64 * dt;
+                excess_prefix_sums(&energies, z_pass, &mut prefix, &mut passing);
+                // The single tiles that pass, in the blocks that hold one.
+                for &first in &passing {
+                    for k in (first..(first + PASS_BLOCK).min(energies.len())).filter(|&k| energies.get(k) >= z_pass) {
+                        let t = k as f64 * dt;
                         if kept(t) {
-                            let (snr, duration) = (tile_snr(z), row.tile_duration());
+                            let (snr, duration) = (tile_snr(energies.get(k)), row.tile_duration());
                             tiles.push(Tile {
                                 time: t0 + t,
                                 frequency: row.frequency,
@@ -485,7 +482,6 @@ impl Scanner {
                 // Excess power over windows of several durations.
                 let tau = row.correlation_time();
                 let median_tiles = energies.len().div_ceil(MEDIAN_STRIDE) as f64;
-                excess_prefix_sums(&energies, &mut prefix);
                 for &window in EXCESS_POWER_WINDOWS.iter().filter(|w| **w >= 4.0 * tau && **w <= EXCESS_POWER_MAX_DOF * tau) {
                     let n = (window / dt).round() as usize;
                     if n < 2 || n >= energies.len() {
@@ -559,25 +555,43 @@ impl Scanner {
 /// The `w_clf` band of the whitening scene when no classifier reads it (Hz).
 const NO_CLASSIFIER_BAND: (f64, f64) = (20.0, 2000.0);
 
+/// Tiles per block in which [`excess_prefix_sums`] looks for passing tiles.
+const PASS_BLOCK: usize = 16;
+
 /// Prefix sums of the mean-normalised excess energies `z ln 2 − 1` of a
-/// row into `prefix` (`prefix[j]` sums the first `j` tiles). Summed in
+/// row into `prefix` (`prefix[j]` sums the first `j` tiles), and into
+/// `passing` the first tile of every block of [`PASS_BLOCK`] tiles that
+/// holds a tile of energy ≥ `z_pass`: one pass over the row. Summed in
 /// blocks of four whose own running sums do not wait on the total, so the
 /// chain of dependent additions is a quarter as long.
-fn excess_prefix_sums(energies: &[f64], prefix: &mut Vec<f64>) {
-    prefix.resize(energies.len() + 1, 0.0);
+fn excess_prefix_sums(energies: &RowEnergies, z_pass: f64, prefix: &mut Vec<f64>, passing: &mut Vec<usize>) {
+    let len = energies.len();
+    prefix.resize(len + 1, 0.0);
     prefix[0] = 0.0;
+    passing.clear();
     let mut total = 0.0;
-    let mut sums = prefix[1..].chunks_exact_mut(4);
-    let mut blocks = energies.chunks_exact(4);
-    for (sum, z) in (&mut sums).zip(&mut blocks) {
-        let e: [f64; 4] = std::array::from_fn(|i| z[i] * LN_2 - 1.0);
-        let (s1, s2) = (e[0] + e[1], e[2] + e[3]);
-        sum.copy_from_slice(&[total + e[0], total + s1, total + (s1 + e[2]), total + (s1 + s2)]);
-        total += s1 + s2;
+    let whole = len - len % PASS_BLOCK;
+    for first in (0..whole).step_by(PASS_BLOCK) {
+        let mut above = 0;
+        for k in (first..first + PASS_BLOCK).step_by(4) {
+            let z: [f64; 4] = energies.block(k);
+            above += z.iter().filter(|z| **z >= z_pass).count();
+            let e: [f64; 4] = std::array::from_fn(|i| z[i] * LN_2 - 1.0);
+            let (s1, s2) = (e[0] + e[1], e[2] + e[3]);
+            prefix[k + 1..k + 5].copy_from_slice(&[total + e[0], total + s1, total + (s1 + e[2]), total + (s1 + s2)]);
+            total += s1 + s2;
+        }
+        if above > 0 {
+            passing.push(first);
+        }
     }
-    for (sum, z) in sums.into_remainder().iter_mut().zip(blocks.remainder()) {
+    for k in whole..len {
+        let z = energies.get(k);
         total += z * LN_2 - 1.0;
-        *sum = total;
+        prefix[k + 1] = total;
+    }
+    if (whole..len).any(|k| energies.get(k) >= z_pass) {
+        passing.push(whole);
     }
 }
 
@@ -585,12 +599,12 @@ fn excess_prefix_sums(energies: &[f64], prefix: &mut Vec<f64>) {
 /// energies `z`, every `dt` s) between `from` and `to` s: each tile weighted
 /// by how far its mean-normalised energy exceeds twice the noise mean, so
 /// noise tiles barely pull it. `None` without such tiles.
-fn excess_centroid(energies: &[f64], dt: f64, from: f64, to: f64) -> Option<f64> {
+fn excess_centroid(energies: &RowEnergies, dt: f64, from: f64, to: f64) -> Option<f64> {
     let a = (from / dt).ceil().max(0.0) as usize;
     let b = ((to / dt).floor().max(0.0) as usize + 1).min(energies.len());
     let (mut w, mut wt) = (0.0, 0.0);
-    for (k, z) in energies.iter().enumerate().take(b).skip(a) {
-        let excess = (z * LN_2 - 2.0).max(0.0);
+    for k in a..b {
+        let excess = (energies.get(k) * LN_2 - 2.0).max(0.0);
         w += excess;
         wt += excess * k as f64 * dt;
     }
