@@ -414,8 +414,14 @@ pub fn run_passes(checked: Function, verify: bool) -> Result<ScenePipeline, Pipe
 
 impl ScenePipeline {
     /// The IR of the forward-only kernel: the pruned IR without its
-    /// gradients, through [`FORWARD_PASSES`].
+    /// gradients, through [`FORWARD_PASSES`]. A scene without gradients
+    /// has it already, as its gradient kernel, which then computes the
+    /// outputs alone: it is reused, so the tables of a long grid (most of
+    /// what compiling the scan's whitening costs) are computed once.
     pub fn forward(&self) -> Result<KernelIr, PipelineError> {
+        if self.pruned.grads.is_empty() && self.pruned.input_grads.is_empty() {
+            return Ok(self.kernel.clone());
+        }
         let mut func = self.pruned.clone();
         func.grads.clear();
         func.input_grads.clear();

@@ -191,14 +191,24 @@ impl RowEnergies<'_> {
 
     /// Energy of tile `k`.
     pub fn get(&self, k: usize) -> f64 {
-        f64::from(self.values[k].norm_sqr()) * self.scale
+        let c = self.values[k];
+        f64::from(c.re * c.re + c.im * c.im) * self.scale
     }
 
-    /// The energies of `N` tiles from `k` on.
+    /// The energies of `N` tiles from `k` on (written as two loops over
+    /// fixed-size arrays, which the compiler turns into vector code).
     #[inline(always)]
     pub fn block<const N: usize>(&self, k: usize) -> [f64; N] {
-        let c = &self.values[k..k + N];
-        std::array::from_fn(|i| f64::from(c[i].norm_sqr()) * self.scale)
+        let c: &[Complex32; N] = self.values[k..k + N].try_into().expect("N values");
+        let mut norms = [0f32; N];
+        for (n, c) in norms.iter_mut().zip(c) {
+            *n = c.re * c.re + c.im * c.im;
+        }
+        let mut z = [0f64; N];
+        for (z, n) in z.iter_mut().zip(norms) {
+            *z = f64::from(n) * self.scale;
+        }
+        z
     }
 }
 

@@ -564,6 +564,7 @@ const PASS_BLOCK: usize = 16;
 /// holds a tile of energy ≥ `z_pass`: one pass over the row. Summed in
 /// blocks of four whose own running sums do not wait on the total, so the
 /// chain of dependent additions is a quarter as long.
+#[inline(never)]
 fn excess_prefix_sums(energies: &RowEnergies, z_pass: f64, prefix: &mut Vec<f64>, passing: &mut Vec<usize>) {
     let len = energies.len();
     prefix.resize(len + 1, 0.0);
@@ -571,18 +572,17 @@ fn excess_prefix_sums(energies: &RowEnergies, z_pass: f64, prefix: &mut Vec<f64>
     passing.clear();
     let mut total = 0.0;
     let whole = len - len % PASS_BLOCK;
-    for first in (0..whole).step_by(PASS_BLOCK) {
-        let mut above = 0;
-        for k in (first..first + PASS_BLOCK).step_by(4) {
-            let z: [f64; 4] = energies.block(k);
-            above += z.iter().filter(|z| **z >= z_pass).count();
+    for (first, sums) in (0..whole).step_by(PASS_BLOCK).zip(prefix[1..].chunks_exact_mut(PASS_BLOCK)) {
+        let z: [f64; PASS_BLOCK] = energies.block(first);
+        // A fold, not `any`: no branch per tile, so it vectorises.
+        if z.iter().fold(false, |above, z| above | (*z >= z_pass)) {
+            passing.push(first);
+        }
+        for (z, sum) in z.chunks_exact(4).zip(sums.chunks_exact_mut(4)) {
             let e: [f64; 4] = std::array::from_fn(|i| z[i] * LN_2 - 1.0);
             let (s1, s2) = (e[0] + e[1], e[2] + e[3]);
-            prefix[k + 1..k + 5].copy_from_slice(&[total + e[0], total + s1, total + (s1 + e[2]), total + (s1 + s2)]);
+            sum.copy_from_slice(&[total + e[0], total + s1, total + (s1 + e[2]), total + (s1 + s2)]);
             total += s1 + s2;
-        }
-        if above > 0 {
-            passing.push(first);
         }
     }
     for k in whole..len {
