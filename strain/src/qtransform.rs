@@ -90,8 +90,7 @@ impl QRow {
         let mut buffers = RowBuffers::default();
         self.transform(spectrum, &mut buffers);
         let raw: Vec<f64> = buffers.values.iter().map(|c| c.norm_sqr()).collect();
-        buffers.sample.clone_from(&raw);
-        let med = median(&mut buffers.sample);
+        let med = median(&mut raw.clone());
         let inv = if med > 0.0 { 1.0 / med } else { 1.0 };
         raw.into_iter().map(|e| e * inv).collect()
     }

@@ -236,17 +236,7 @@ impl Function {
     /// later prune drops what only the others needed).
     pub fn retain_outputs(&mut self, keep: impl Fn(&Output) -> bool) {
         // Each output's index among the kept ones, `None` if dropped.
-        let mut kept = 0;
-        let new_index: Vec<Option<usize>> = self
-            .outputs
-            .iter()
-            .map(|o| {
-                keep(o).then(|| {
-                    kept += 1;
-                    kept - 1
-                })
-            })
-            .collect();
+        let new_index = indices_among_kept(self.outputs.iter().map(keep));
         let mut old = new_index.iter();
         self.outputs.retain(|_| old.next().is_some_and(Option::is_some));
         self.grads.retain_mut(|g| new_index[g.output].map(|n| g.output = n).is_some());
@@ -274,34 +264,21 @@ impl Function {
             }
             frozen[k] = Some(value * self.params[k].scale);
         }
-        // Each kept param's new index.
-        let mut kept = 0u32;
-        let new_index: Vec<Option<u32>> = frozen
-            .iter()
-            .map(|f| {
-                f.is_none().then(|| {
-                    kept += 1;
-                    kept - 1
-                })
-            })
-            .collect();
+        let new_index = indices_among_kept(frozen.iter().map(Option::is_none));
         for inst in &mut self.insts {
             if let Op::Param(k) = inst.op {
                 inst.op = match (frozen[k as usize], new_index[k as usize]) {
                     (Some(v), _) => Op::Const(v.to_bits()),
-                    (None, Some(n)) => Op::Param(n),
+                    (None, Some(n)) => Op::Param(n as u32),
                     (None, None) => unreachable!("a param is either frozen or kept"),
                 };
             }
         }
         for g in &mut self.grads {
-            g.param = new_index[g.param].expect("gradients of frozen params were refused") as usize;
+            g.param = new_index[g.param].expect("gradients of frozen params were refused");
         }
-        let mut k = 0;
-        self.params.retain(|_| {
-            k += 1;
-            frozen[k - 1].is_none()
-        });
+        let mut kept = new_index.iter();
+        self.params.retain(|_| kept.next().is_some_and(Option::is_some));
         Ok(())
     }
 
@@ -412,4 +389,17 @@ impl Function {
             g.value = g.value.map(&map);
         }
     }
+}
+
+/// For items kept or dropped (`keep`, in order): each kept item's index
+/// among the kept ones, `None` for a dropped one.
+fn indices_among_kept(keep: impl Iterator<Item = bool>) -> Vec<Option<usize>> {
+    let mut kept = 0;
+    keep.map(|k| {
+        k.then(|| {
+            kept += 1;
+            kept - 1
+        })
+    })
+    .collect()
 }
