@@ -100,8 +100,8 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
         Ok::<_, Error>(m)
     };
     let better = |best: Minimum, m: Minimum| if m.loss < best.loss { m } else { best };
-    // The fit's mode, and the best-fitting other mode known (from the neighbours).
-    let (mut best, rival) = match begin {
+    // The fit's mode, and the other modes known (from the neighbours).
+    let (mut best, rivals) = match begin {
         Begin::Search(seed, more) => {
             // 1. Starting points, each with the amplitude and phase that best match the data.
             let mut starts = (family.starts)(seed);
@@ -121,7 +121,7 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
             }
             let best = best
                 .ok_or_else(|| Error::Bind(format!("no starting point of the `{}` fit has a finite match with the data", family.scene)))?;
-            (best, None)
+            (best, Vec::new())
         }
         Begin::Neighbours(x) => {
             let mut minima = vec![refine(&mut run, &x, &mut evaluations)?];
@@ -142,10 +142,14 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
             let same_mode = |a: &[f64], b: &[f64]| {
                 bounds.iter().zip(a.iter().zip(b)).all(|(r, (a, b))| r.is_none_or(|(lo, hi)| (a - b).abs() <= 1e-3 * (hi - lo)))
             };
-            let mut minima = minima.into_iter();
-            let best = minima.next().expect("one minimum");
-            let rival = minima.find(|m| !same_mode(&m.x, &best.x));
-            (best, rival)
+            let mut modes: Vec<Minimum> = Vec::new();
+            for m in minima {
+                if modes.iter().all(|kept| !same_mode(&m.x, &kept.x)) {
+                    modes.push(m);
+                }
+            }
+            let best = modes.remove(0);
+            (best, modes)
         }
     };
     best.x[2] = best.x[2].rem_euclid(TAU);
@@ -179,18 +183,12 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
     let samples = d.len() * window.factor;
     let score =
         Score { loss, params: x.len(), evidence: laplace_evidence(loss, &x, &fit.fisher, &prior), bic: bic(loss, x.len(), samples) };
-    // With another mode known, σ is that of the two-mode mixture, each
-    // mode weighted by its likelihood (its Laplace volume taken as this
-    // one's): σ² + w₁w₂ Δx². ln Z is left to this mode's (it would gain
-    // ln(1 + e^{−ΔL}) ≤ ln 2).
-    let spread = |i: usize| match &rival {
-        Some(r) if i != 2 => {
-            let w = 1.0 / (1.0 + (r.loss - fit.minimum.loss).max(0.0).exp());
-            w * (1.0 - w) * (x[i] - r.x[i]).powi(2)
-        }
-        _ => 0.0,
-    };
-    let sigma = covariance.as_ref().ok().map(|c| c.sigma.iter().enumerate().map(|(i, s)| (s * s + spread(i)).sqrt()).collect::<Vec<_>>());
+    // ln Z is left to this mode's (with the other modes it would gain ln Σ e^{−ΔLₖ}).
+    let rivals: Vec<(f64, &[f64])> = rivals.iter().map(|r| (r.loss, r.x.as_slice())).collect();
+    let spread = mode_spread((fit.minimum.loss, &x), &rivals);
+    let sigma = covariance.as_ref().ok().map(|c| {
+        c.sigma.iter().zip(&spread).enumerate().map(|(i, (s, m))| if i == 2 { *s } else { (s * s + m).sqrt() }).collect::<Vec<_>>()
+    });
     let params = free
         .iter()
         .enumerate()
@@ -215,6 +213,18 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
         evaluations: evaluations + 1,
         seconds: 0.0,
     })
+}
+
+/// The variance each param gains from other modes of the likelihood:
+/// the mean squared distance from the estimate `best` (its loss and
+/// params) of a mixture of it and the `rivals` (loss, params), each
+/// weighted by its likelihood `e^{−loss}` with its Laplace volume taken
+/// as the estimate's: `Σ wₖ (xₖ − x̂)²`. Added to σ², it is the spread of
+/// that mixture about the estimate.
+fn mode_spread(best: (f64, &[f64]), rivals: &[(f64, &[f64])]) -> Vec<f64> {
+    let weights: Vec<f64> = rivals.iter().map(|(loss, _)| (best.0 - loss).min(0.0).exp()).collect();
+    let total = 1.0 + weights.iter().sum::<f64>();
+    (0..best.1.len()).map(|i| rivals.iter().zip(&weights).map(|((_, x), w)| w / total * (x[i] - best.1[i]).powi(2)).sum()).collect()
 }
 
 /// The Gauss–Newton Fisher matrix of the fit's Gaussian likelihood at
@@ -294,6 +304,23 @@ mod tests {
     use crate::explain::EXPLAIN_SOURCE;
     use gwml_compiler::Options;
     use gwml_runtime::Model;
+
+    /// Another mode as likely as the estimate counts half; one 10 units of
+    /// loss worse, e^-10 of it; each param moves by its own distance.
+    #[test]
+    fn other_modes_widen_each_param_by_their_weighted_distance() {
+        let best = [1.0, 10.0];
+        let even = mode_spread((5.0, &best), &[(5.0, &[3.0, 10.0])]);
+        assert_eq!(even, [0.5 * 4.0, 0.0]);
+        let far = mode_spread((5.0, &best), &[(15.0, &[3.0, 12.0])]);
+        let w = (-10.0f64).exp() / (1.0 + (-10.0f64).exp());
+        assert!((far[0] - 4.0 * w).abs() < 1e-15 && (far[1] - 4.0 * w).abs() < 1e-15, "{far:?}");
+        // Two rivals, one at the same loss and one e^-1 as likely.
+        let two = mode_spread((0.0, &best), &[(0.0, &[2.0, 10.0]), (1.0, &[1.0, 13.0])]);
+        let total = 2.0 + (-1.0f64).exp();
+        assert!((two[0] - 1.0 / total).abs() < 1e-15 && (two[1] - 9.0 * (-1.0f64).exp() / total).abs() < 1e-15, "{two:?}");
+        assert_eq!(mode_spread((0.0, &best), &[]), [0.0, 0.0]);
+    }
 
     #[test]
     fn at_a_noiseless_fit_the_model_fisher_is_the_loss_hessian() {
