@@ -101,6 +101,8 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
     };
     let better = |best: Minimum, m: Minimum| if m.loss < best.loss { m } else { best };
     // The fit's mode, and the other modes known (from the neighbours).
+    // Only the fits that compete for the verdict come back for their neighbours; only they are profiled.
+    let competing = matches!(begin, Begin::Neighbours(_));
     let (mut best, rivals) = match begin {
         Begin::Search(seed, more) => {
             // 1. Starting points, each with the amplitude and phase that best match the data.
@@ -186,9 +188,23 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
     // ln Z is left to this mode's (with the other modes it would gain ln Σ e^{−ΔLₖ}).
     let rivals: Vec<(f64, &[f64])> = rivals.iter().map(|r| (r.loss, r.x.as_slice())).collect();
     let spread = mode_spread((fit.minimum.loss, &x), &rivals);
-    let sigma = covariance.as_ref().ok().map(|c| {
+    let mut sigma = covariance.as_ref().ok().map(|c| {
         c.sigma.iter().zip(&spread).enumerate().map(|(i, (s, m))| if i == 2 { *s } else { (s * s + m).sqrt() }).collect::<Vec<_>>()
     });
+    if let Some(sigma) = sigma.as_mut().filter(|_| competing) {
+        for (i, p) in free.iter().enumerate().filter(|(_, p)| family.profiled.contains(&p.0.as_str())) {
+            let fixed = |x: &[f64]| -> Result<(f64, Vec<f64>), Error> {
+                set(&mut run, &free, x)?;
+                let out = run.value_and_grad()?;
+                let grad = free.iter().enumerate().map(|(j, q)| if j == i { 0.0 } else { out.grad("loss", &q.0).unwrap_or(0.0) }).collect();
+                Ok((out.scalar("loss")?, grad))
+            };
+            let (wider, used) = profile_sigma(fixed, (&x, fit.minimum.loss), i, sigma[i], (&bounds, p.2), &settings)?;
+            sigma[i] = wider;
+            evaluations += used;
+        }
+        set(&mut run, &free, &x)?;
+    }
     let params = free
         .iter()
         .enumerate()
@@ -213,6 +229,47 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
         evaluations: evaluations + 1,
         seconds: 0.0,
     })
+}
+
+/// A param's bounds, if it has any.
+type Range = Option<(f64, f64)>;
+
+/// How many σ from the estimate the profile likelihood is taken at.
+const PROFILE_AT: f64 = 3.0;
+
+/// σ of param `i` widened to the profile likelihood's: the loss minimised
+/// over the other params (`fixed`: the loss and its gradient with param
+/// `i`'s component zeroed, so L-BFGS holds it) with param `i` at
+/// [`PROFILE_AT`] σ either side of the estimate `x` (loss `loss`). Where
+/// the profile rises by ΔL < 4.5 there, less than a Gaussian's, σ becomes
+/// `PROFILE_AT σ / √(2ΔL)`, so that ±3σ is the profile's ΔL = 4.5 interval
+/// on that side (ΔL is floored at ½: a point as good as the estimate
+/// makes its distance σ). Never narrowed; a side beyond a bound is
+/// skipped. Returns σ and the evaluations spent.
+fn profile_sigma(
+    mut fixed: impl FnMut(&[f64]) -> Result<(f64, Vec<f64>), Error>,
+    (x, loss): (&[f64], f64),
+    i: usize,
+    sigma: f64,
+    (bounds, range): (&[Range], Range),
+    settings: &Settings,
+) -> Result<(f64, usize), Error> {
+    let (mut wider, mut evaluations) = (sigma, 0);
+    for side in [-1.0, 1.0] {
+        let mut start = x.to_vec();
+        start[i] += side * PROFILE_AT * sigma;
+        let inside = sigma > 0.0 && range.is_none_or(|(lo, hi)| lo < start[i] && start[i] < hi);
+        if !inside {
+            continue;
+        }
+        let m = minimize(&mut fixed, &start, bounds, settings, |_| {})?;
+        evaluations += m.evaluations;
+        let rise = (m.loss - loss).max(0.5);
+        if rise.is_finite() {
+            wider = wider.max(PROFILE_AT * sigma / (2.0 * rise).sqrt());
+        }
+    }
+    Ok((wider, evaluations))
 }
 
 /// The variance each param gains from other modes of the likelihood:
@@ -304,6 +361,36 @@ mod tests {
     use crate::explain::EXPLAIN_SOURCE;
     use gwml_compiler::Options;
     use gwml_runtime::Model;
+
+    /// A profile flatter than a Gaussian widens σ to its ΔL = 4.5 point at
+    /// ±3σ, the other param re-minimised there; a steeper one leaves σ.
+    #[test]
+    fn sigma_widens_to_a_flat_profile_and_not_to_a_steep_one() {
+        // L = ½ (y − x/2)² + ½ x² / (1 + x²/9): curvature 1 in x at the
+        // minimum (σ = 1 once y is profiled out), and the profile at x = ±3
+        // is 2.25, so σ becomes 3 / √4.5. Without re-minimising y the rise
+        // would be 3.375 (σ 1.155).
+        let flat = |v: &[f64]| -> Result<(f64, Vec<f64>), Error> {
+            let (x, y) = (v[0], v[1]);
+            let d = 1.0 + x * x / 9.0;
+            let loss = 0.5 * (y - 0.5 * x).powi(2) + 0.5 * x * x / d;
+            Ok((loss, vec![0.0, y - 0.5 * x]))
+        };
+        let settings = Settings::new(Algorithm::Lbfgs);
+        let free = [None, None];
+        let (sigma, used) = profile_sigma(flat, (&[0.0, 0.0], 0.0), 0, 1.0, (&free, None), &settings).unwrap();
+        assert!((sigma - 3.0 / 4.5f64.sqrt()).abs() < 1e-6, "σ {sigma}");
+        assert!(used > 0);
+        // A quartic rises faster than a Gaussian: σ stays.
+        let steep =
+            |v: &[f64]| -> Result<(f64, Vec<f64>), Error> { Ok((0.5 * v[0] * v[0] + v[0].powi(4) + 0.5 * v[1] * v[1], vec![0.0, v[1]])) };
+        assert_eq!(profile_sigma(steep, (&[0.0, 0.0], 0.0), 0, 1.0, (&free, None), &settings).unwrap().0, 1.0);
+        // A side beyond the param's bounds is skipped: only +3 is taken.
+        let (one_side, _) = profile_sigma(flat, (&[0.0, 0.0], 0.0), 0, 1.0, (&free, Some((-2.0, 10.0))), &settings).unwrap();
+        assert!((one_side - 3.0 / 4.5f64.sqrt()).abs() < 1e-6, "σ {one_side}");
+        let (none, used) = profile_sigma(flat, (&[0.0, 0.0], 0.0), 0, 1.0, (&free, Some((-2.0, 2.0))), &settings).unwrap();
+        assert_eq!((none, used), (1.0, 0));
+    }
 
     /// Another mode as likely as the estimate counts half; one 10 units of
     /// loss worse, e^-10 of it; each param moves by its own distance.

@@ -99,6 +99,10 @@ pub struct Family {
     scaled_steps: bool,
     /// How many of the best-matching starts L-BFGS refines.
     refined: usize,
+    /// Params whose σ is widened to the profile likelihood's at ±3σ
+    /// (`fit.rs`' `profile_sigma`) in the fits that compete for the
+    /// verdict (those whose neighbours are tried).
+    profiled: &'static [&'static str],
     /// The highest frequency (Hz) its whitened templates carry energy at
     /// within the bounds: the fit runs at the lowest rate whose Nyquist
     /// frequency is above it ([`factor_for`]).
@@ -123,6 +127,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
+        profiled: &[],
         top: f64::INFINITY,
     },
     Family {
@@ -134,6 +139,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
+        profiled: &[],
         top: f64::INFINITY,
     },
     Family {
@@ -145,6 +151,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: Some(whistle_neighbours),
         scaled_steps: true,
         refined: STARTS_REFINED,
+        profiled: &["f_turn"],
         top: f64::INFINITY,
     },
     // A carrier of at most 600 Hz swung by at most 40 %, and the arches'
@@ -158,6 +165,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: Some(scratchy_neighbours),
         scaled_steps: false,
         refined: STARTS_REFINED,
+        profiled: &[],
         top: 1000.0,
     },
     // f0 ≤ 60 Hz at Q ≥ 1.2: the envelope's spectrum has a 1/e half-width
@@ -171,6 +179,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: None,
         scaled_steps: false,
         refined: TOMTE_STARTS_REFINED,
+        profiled: &[],
         top: 400.0,
     },
     // The third harmonic of fringes of at most 100 Hz.
@@ -183,6 +192,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
+        profiled: &[],
         top: 400.0,
     },
     // The inspiral ends at its ISCO: 191 Hz for the lightest binary of the bounds.
@@ -195,6 +205,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
+        profiled: &[],
         top: 400.0,
     },
 ];
