@@ -456,7 +456,9 @@ pub struct Estimate {
     /// 1σ from the Fisher matrix (none when it has no inverse), widened by
     /// the distances to other modes of the likelihood when some are known
     /// (a scratchy carrier a comb line off, a whistle's vertex a cycle
-    /// slip off), as the spread of a mixture of modes about the estimate.
+    /// slip off), as the spread of a mixture of modes about the estimate,
+    /// and for a family's `profiled` params to the profile likelihood's
+    /// at ±3σ where that is flatter than a Gaussian.
     pub sigma: Option<f64>,
     /// The prior's bounds (the phase: the period around its estimate).
     pub bounds: (f64, f64),
