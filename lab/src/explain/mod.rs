@@ -101,7 +101,7 @@ pub struct Family {
     refined: usize,
     /// Params whose σ is widened to the profile likelihood's at ±3σ
     /// (`fit.rs`' `profile_sigma`) in the fits that compete for the
-    /// verdict (those whose neighbours are tried).
+    /// verdict (which are fitted again for their neighbours and these).
     profiled: &'static [&'static str],
     /// The highest frequency (Hz) its whitened templates carry energy at
     /// within the bounds: the fit runs at the lowest rate whose Nyquist
@@ -127,7 +127,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
-        profiled: &[],
+        profiled: &["f0", "q"],
         top: f64::INFINITY,
     },
     Family {
@@ -139,7 +139,7 @@ pub const FAMILIES: [Family; 7] = [
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
-        profiled: &[],
+        profiled: &["f0", "q"],
         top: f64::INFINITY,
     },
     Family {
@@ -597,10 +597,11 @@ impl Explainer {
             }
         }
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
-        // The neighbouring modes of the fits that compete for the verdict
-        // (only there do their params matter enough to pay for them).
+        // The neighbouring modes and profiled σ of the fits that compete
+        // for the verdict (only there do their params matter enough to pay for them).
         let best = fits.first().map_or(f64::NEG_INFINITY, FamilyFit::ln_z);
-        for fit in fits.iter_mut().filter(|f| f.family.neighbours.is_some() && f.ln_z() >= best - NEIGHBOUR_GATE) {
+        let comes_back = |f: &Family| f.neighbours.is_some() || !f.profiled.is_empty();
+        for fit in fits.iter_mut().filter(|f| comes_back(&f.family) && f.ln_z() >= best - NEIGHBOUR_GATE) {
             let clock = Instant::now();
             let (family, scene, factor) = self.scenes.iter().find(|(f, ..)| f.scene == fit.family.scene).expect("a compiled family");
             let window = (at(*factor), self.sample_rate / *factor as f64);
