@@ -46,7 +46,7 @@ pub use report::*;
 pub use residual::*;
 pub use seeds::*;
 
-use fit::{fit_family, Begin};
+use fit::{fit_family, widen_to_profiles, Begin};
 use gwml_compiler::Options;
 use gwml_runtime::fit::Score;
 use gwml_runtime::{Error, Model, Scene};
@@ -477,6 +477,9 @@ pub struct FamilyFit {
     pub score: Score,
     /// The whitened best-fit model over the window.
     pub model: Vec<f64>,
+    /// The params' covariance, the Fisher matrix's inverse, before any
+    /// widening (none when it has no inverse).
+    pub covariance: Option<Vec<Vec<f64>>>,
     /// Scene evaluations the fit took (forward, and value with gradient).
     pub evaluations: usize,
     /// Seconds the fit took, its starts' searches included (one thread).
@@ -605,11 +608,15 @@ impl Explainer {
             let clock = Instant::now();
             let (family, scene, factor) = self.scenes.iter().find(|(f, ..)| f.scene == fit.family.scene).expect("a compiled family");
             let window = (at(*factor), self.sample_rate / *factor as f64);
-            let x = fit.params.iter().map(|p| p.value).collect();
-            let mut hopped = fit_family(family, scene, window, Begin::Neighbours(x))?;
-            hopped.seconds = fit.seconds + clock.elapsed().as_secs_f64();
-            hopped.evaluations += fit.evaluations;
-            *fit = hopped;
+            let seconds = fit.seconds;
+            if family.neighbours.is_some() {
+                let x = fit.params.iter().map(|p| p.value).collect();
+                let hopped = fit_family(family, scene, window, Begin::Neighbours(x))?;
+                let evaluations = fit.evaluations + hopped.evaluations;
+                *fit = FamilyFit { evaluations, ..hopped };
+            }
+            widen_to_profiles(scene, window.0, fit)?;
+            fit.seconds = seconds + clock.elapsed().as_secs_f64();
         }
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
         let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();

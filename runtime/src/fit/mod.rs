@@ -22,6 +22,9 @@
 //!   Fisher information and its inverse the covariance of the estimate in
 //!   the linear-signal approximation (Vallisneri 2008, PRD 77, 042001).
 //!   The loss must be normalised that way for the σ to mean anything.
+//! - [`newton_polish`] takes Newton steps on that Hessian from where a
+//!   quasi-Newton run stopped short (an ill-conditioned fit), re-taking
+//!   the Hessian after each.
 //! - [`laplace_evidence`] turns a fit into a log evidence under uniform
 //!   priors on the bounds (model comparison), [`bic`] the Bayesian
 //!   information criterion.
@@ -32,12 +35,14 @@
 mod evidence;
 mod fisher;
 mod minimize;
+mod newton;
 mod scene;
 mod transform;
 
 pub use evidence::*;
 pub use fisher::*;
 pub use minimize::*;
+pub use newton::*;
 pub use scene::*;
 pub use transform::*;
 

@@ -236,3 +236,73 @@ fn a_diagonal_start_fits_params_of_very_different_stiffness() {
     assert!((d.x[1] - 2.0).abs() < 1e-2 && (d.x[0] - 0.3001).abs() < 1e-6, "diagonal: {d:?}");
     assert!((p.x[1] - 2.0).abs() > 0.1, "plain L-BFGS fitted it too ({p:?}): the test shows nothing");
 }
+
+/// A test loss and its gradient.
+type Loss = fn(&[f64]) -> Result<(f64, Vec<f64>), ()>;
+
+/// A minimum as L-BFGS would hand it over, stopped at `x`.
+fn stopped_at(f: Loss, x: &[f64]) -> Minimum {
+    let (loss, grad) = f(x).unwrap();
+    Minimum { x: x.to_vec(), loss, grad, steps: 100, evaluations: 120, stop: Stop::Steps }
+}
+
+fn hessian_at(f: Loss, x: &[f64], bounds: &[Option<(f64, f64)>]) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let steps = fisher_steps(|x: &[f64]| f(x).map(|r| r.1), x, bounds).unwrap();
+    (fisher_matrix(|x: &[f64]| f(x).map(|r| r.1), x, bounds, &steps).unwrap(), steps)
+}
+
+#[test]
+fn one_newton_step_lands_on_a_quadratics_floor() {
+    let bounds = [None; 3];
+    let x = [3.0, 1.0, -4.0];
+    let (fisher, steps) = hessian_at(quadratic, &x, &bounds);
+    let settings = NewtonSettings { max_steps: 5, decrease_tol: 1e-12 };
+    let p = newton_polish(quadratic, stopped_at(quadratic, &x), fisher, &bounds, &steps, &settings).unwrap();
+    assert!(p.converged && p.newton_steps == 1, "{} steps, converged {}", p.newton_steps, p.converged);
+    for (a, b) in p.minimum.x.iter().zip([1.0, -2.0, 0.5]) {
+        assert!(close(*a, b, 1e-9), "{:?}", p.minimum.x);
+    }
+    // One trial and a new Hessian (2 gradients per param) on top of what L-BFGS used.
+    assert_eq!((p.minimum.evaluations, p.minimum.steps), (120 + 1 + 6, 101));
+}
+
+#[test]
+fn newton_steps_finish_a_curved_valley_and_stop_within_tolerance() {
+    let bounds = [None; 2];
+    let x = [0.9, 0.8];
+    let (fisher, steps) = hessian_at(rosenbrock, &x, &bounds);
+    let settings = NewtonSettings { max_steps: 20, decrease_tol: 1e-14 };
+    let p = newton_polish(rosenbrock, stopped_at(rosenbrock, &x), fisher, &bounds, &steps, &settings).unwrap();
+    assert!(p.converged && p.minimum.loss < 1e-14, "loss {} after {} steps", p.minimum.loss, p.newton_steps);
+    assert!(close(p.minimum.x[0], 1.0, 1e-6) && close(p.minimum.x[1], 1.0, 1e-6), "{:?}", p.minimum.x);
+    // One step is not enough at this tolerance: it stops at the budget, lower than it began.
+    let few = NewtonSettings { max_steps: 1, ..settings };
+    let (fisher, _) = hessian_at(rosenbrock, &x, &bounds);
+    let p = newton_polish(rosenbrock, stopped_at(rosenbrock, &x), fisher, &bounds, &steps, &few).unwrap();
+    assert!(!p.converged && p.newton_steps == 1 && p.minimum.loss < rosenbrock(&x).unwrap().0);
+}
+
+#[test]
+fn a_newton_step_stays_inside_the_bounds() {
+    // The quadratic's floor is at x0 = 1, beyond the bound 0.5: the step
+    // is cut to 99 % of the way there, and the loss still falls.
+    let bounds = [Some((-5.0, 0.5)), None, None];
+    let x = [0.0, -2.0, 0.5];
+    let (fisher, steps) = hessian_at(quadratic, &x, &bounds);
+    let settings = NewtonSettings { max_steps: 1, decrease_tol: 1e-12 };
+    let p = newton_polish(quadratic, stopped_at(quadratic, &x), fisher, &bounds, &steps, &settings).unwrap();
+    assert!(p.minimum.x[0] < 0.5 && p.minimum.x[0] > 0.49, "{:?}", p.minimum.x);
+    assert!(p.minimum.loss < quadratic(&x).unwrap().0);
+}
+
+#[test]
+fn no_newton_step_where_the_hessian_is_not_positive_definite() {
+    // A saddle: L = x² − y².
+    let saddle = |x: &[f64]| -> Result<(f64, Vec<f64>), ()> { Ok((x[0] * x[0] - x[1] * x[1], vec![2.0 * x[0], -2.0 * x[1]])) };
+    let (loss, grad) = saddle(&[0.3, 0.2]).unwrap();
+    let start = Minimum { x: vec![0.3, 0.2], loss, grad, steps: 3, evaluations: 4, stop: Stop::Steps };
+    let fisher = vec![vec![2.0, 0.0], vec![0.0, -2.0]];
+    let settings = NewtonSettings { max_steps: 5, decrease_tol: 1e-12 };
+    let p = newton_polish(saddle, start.clone(), fisher, &[None, None], &[1e-3, 1e-3], &settings).unwrap();
+    assert!(!p.converged && p.newton_steps == 0 && p.minimum.x == start.x && p.minimum.evaluations == 4);
+}
