@@ -101,7 +101,7 @@ pub struct Family {
     refined: usize,
     /// Params whose σ is widened to the profile likelihood's at ±3σ
     /// (`fit.rs`' `profile_sigma`) in the fits that compete for the
-    /// verdict (which are fitted again for their neighbours and these).
+    /// verdict, in a pass of their own on the fit (`widen_to_profiles`).
     profiled: &'static [&'static str],
     /// The highest frequency (Hz) its whitened templates carry energy at
     /// within the bounds: the fit runs at the lowest rate whose Nyquist
