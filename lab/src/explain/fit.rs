@@ -259,9 +259,9 @@ fn refining(family: &Family) -> Settings {
 
 /// Widens the σ of the family's `profiled` params of `fit` (on the
 /// window it was fitted to) to their profile likelihood's
-/// ([`profile_sigma`]). Only the fits that compete for the verdict pay
-/// for it. Returns the evaluations spent.
-pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut FamilyFit) -> Result<usize, Error> {
+/// ([`profile_sigma`]), adding the evaluations spent to the fit's. Only
+/// the fits that compete for the verdict pay for it.
+pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut FamilyFit) -> Result<(), Error> {
     let mut run = scene.bind();
     run.input_real("d", &window.d)?;
     run.input_real("psd", &window.psd)?;
@@ -270,7 +270,6 @@ pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut Fam
     let x: Vec<f64> = fit.params.iter().map(|p| p.value).collect();
     let loss = fit.score.loss - window.cut_loss;
     let settings = Settings { max_steps: PROFILE_STEPS, ..refining(&fit.family) };
-    let mut evaluations = 0;
     for (i, p) in free.iter().enumerate().filter(|(_, p)| fit.family.profiled.contains(&p.0.as_str())) {
         let Some(sigma) = fit.params[i].sigma else { continue };
         let fixed = |x: &[f64]| -> Result<(f64, Vec<f64>), Error> {
@@ -281,10 +280,9 @@ pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut Fam
         let along = fit.covariance.as_ref().map(|c| c.iter().map(|row| row[i] / c[i][i]).collect());
         let (wider, used) = profile_sigma(fixed, (&x, loss), (i, along), sigma, (&bounds, p.2), &settings)?;
         fit.params[i].sigma = Some(wider);
-        evaluations += used;
+        fit.evaluations += used;
     }
-    fit.evaluations += evaluations;
-    Ok(evaluations)
+    Ok(())
 }
 
 /// σ of param `i` widened to the profile likelihood's: the loss minimised
@@ -315,9 +313,9 @@ fn profile_sigma(
             continue;
         }
         let mut start = x.to_vec();
-        for (j, v) in start.iter_mut().enumerate() {
-            *v += step * along.as_ref().map_or(if j == i { 1.0 } else { 0.0 }, |a| a[j]);
-            if let (true, Some((lo, hi))) = (j != i, bounds[j]) {
+        for (j, v) in start.iter_mut().enumerate().filter(|(j, _)| *j != i) {
+            *v += along.as_ref().map_or(0.0, |a| step * a[j]);
+            if let Some((lo, hi)) = bounds[j] {
                 *v = v.clamp(lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo));
             }
         }
