@@ -701,6 +701,35 @@ fn vectorised_exp_matches_libm_in_fast_modes() {
     }
 }
 
+/// `exact` exp calls libm (`exp`, f32 `expf`) except where e^x rounds to
+/// +0, which it answers inline: the same bits as libm on both sides of
+/// that edge (−745.13 in f64, −103.97 in f32) and far below it.
+#[test]
+fn exact_exp_matches_libm_bit_for_bit_around_underflow() {
+    let src = "scene e {
+        grid g = index(16)
+        input x: real[g] = 0.0
+        output ex = exp(x)
+    }";
+    let f64_edge = [-708.5, -745.0, -745.13, -745.1332, -745.2, -745.2000001, -745.3, -800.0, -1e5, -1e300];
+    let f32_edge = [-87.0, -103.0, -103.9, -103.97, -103.98, -104.0, -104.01, -110.0, -1e5, -1e30];
+    let shared = [0.0, -1.0, 1.0, 80.0, 0.5, -3e38];
+    let model = Model::from_source("e.gw", src).unwrap();
+    for (precision, edge) in [(Precision::F64, f64_edge), (Precision::F32, f32_edge)] {
+        let x: Vec<f64> = shared.iter().chain(&edge).copied().collect();
+        let options = Options { precision: Some(precision), math: Some(MathMode::Exact), ..Default::default() };
+        let scene = model.scene_with(None, options).unwrap();
+        let mut run = scene.bind();
+        run.input_real("x", &x).unwrap();
+        let out = run.forward().unwrap();
+        let Ok(Value::RealArray(ex)) = out.value("ex") else { panic!("a real array output") };
+        for (k, &xk) in x.iter().enumerate() {
+            let want = if precision == Precision::F32 { f64::from((xk as f32).exp()) } else { xk.exp() };
+            assert_eq!(ex[k].to_bits(), want.to_bits(), "{precision:?}: exp({xk:e}) = {:e} vs libm {want:e}", ex[k]);
+        }
+    }
+}
+
 /// f32 rescaling (`passes::rescale`) on values far outside f32's range at
 /// their true scale: strains of ~1e-25, a PSD of ~1e-46, their squares and
 /// quotients, through logs, roots, fractional powers, min/max, atan2,

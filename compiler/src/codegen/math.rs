@@ -1,12 +1,13 @@
 //! Math functions: inline (`mathlib`) or libm per the scene's `math` knob, library-call imports, and constant powers.
 
-use super::mathlib::SlowPath;
+use super::mathlib::{SlowPath, EXP_ZERO};
 use super::{CodegenError, Gen};
 use crate::ir::*;
 use crate::kernels::band;
 use crate::kernels::dft::{gwml_dft_f32, gwml_dft_f64};
 use crate::kernels::tensor::{gwml_tensor_f32, gwml_tensor_f64};
-use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, Signature, StackSlotData, StackSlotKind};
+use cranelift_codegen::ir::condcodes::FloatCC;
+use cranelift_codegen::ir::{types, AbiParam, BlockArg, FuncRef, InstBuilder, Signature, StackSlotData, StackSlotKind};
 use cranelift_frontend::FunctionBuilder;
 use cranelift_module::{Linkage, Module};
 use std::collections::HashMap;
@@ -36,6 +37,10 @@ mod libm {
         pub fn sincosf(x: f32, s: *mut f32, c: *mut f32);
     }
 }
+
+/// Below this, f32 e^x rounds to +0: it is under half of f32's least
+/// subnormal, 2^-150, for x < −150·ln 2 = −103.97….
+const EXP_ZERO_F32: f32 = -104.0;
 
 const MATH1: &[&str] = &["cbrt", "exp", "log", "sin", "cos", "tan", "tanh"];
 const MATH2: &[&str] = &["pow", "atan2"];
@@ -139,6 +144,34 @@ impl Gen<'_> {
         }
     }
 
+    /// libm's e^x (`exp`, or `expf` in f32) without the call where it
+    /// rounds to +0 (below `EXP_ZERO`, or [`EXP_ZERO_F32`], and at −inf):
+    /// the far tails of a Gaussian envelope, which glibc takes through its
+    /// slow underflow path. The same results as the call.
+    fn libm_exp(&mut self, x: cranelift_codegen::ir::Value) -> Result<cranelift_codegen::ir::Value, CodegenError> {
+        let f32 = self.f32();
+        let f = self.import(if f32 { "expf" } else { "exp" })?;
+        let b = &mut self.b;
+        let (call_blk, merge) = (b.create_block(), b.create_block());
+        let (limit, zero) = if f32 {
+            b.append_block_param(merge, types::F32);
+            (b.ins().f32const(EXP_ZERO_F32), b.ins().f32const(0.0))
+        } else {
+            b.append_block_param(merge, types::F64);
+            (b.ins().f64const(EXP_ZERO), b.ins().f64const(0.0))
+        };
+        let underflows = b.ins().fcmp(FloatCC::LessThan, x, limit);
+        b.ins().brif(underflows, merge, &[BlockArg::Value(zero)], call_blk, &[]);
+        b.seal_block(call_blk);
+        b.switch_to_block(call_blk);
+        let c = b.ins().call(f, &[x]);
+        let y = b.inst_results(c)[0];
+        b.ins().jump(merge, &[BlockArg::Value(y)]);
+        b.seal_block(merge);
+        b.switch_to_block(merge);
+        Ok(b.block_params(merge)[0])
+    }
+
     /// `name(args)` (f64 names) inline or through libm, per [`Gen::inline_math`].
     pub(super) fn math(
         &mut self,
@@ -152,6 +185,9 @@ impl Gen<'_> {
             if name == "sincos" {
                 let (s, c) = self.libm_sincos(args[0])?;
                 return Ok(vec![s, c]);
+            }
+            if name == "exp" {
+                return Ok(vec![self.libm_exp(args[0])?]);
             }
             return Ok(vec![self.call(name, args)?]);
         }

@@ -159,18 +159,23 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
     };
     best.x[2] = best.x[2].rem_euclid(TAU);
     // 3. Fisher matrix and errors at the best fit (a few more steps if it
-    // can still improve, and Newton steps on the Fisher matrix where those
-    // ran out; after a converged polish, on seed 1's chirps, they left two
-    // fits with σ(mc) ~1e-5 Msun, a Hessian no smooth likelihood has).
+    // can still improve). Newton steps on the Fisher matrix follow where
+    // those ran out, and where the Hessian at their end is not positive
+    // definite (then kept only if they end where it is: a fit that stopped
+    // short of its floor). After a polish that converged with a positive
+    // definite Hessian they are not taken: on seed 1's chirps they left
+    // two fits with σ(mc) ~1e-5 Msun, a Hessian no smooth likelihood has.
     set(&mut run, &free, &best.x)?;
     let mut fit = fit_run(&mut run, Some("loss"), &Settings { rel_tol: 1e-9, ..settings.clone() }, |_| {})?;
     evaluations += fit.minimum.evaluations + 2 * free.len() + 2;
-    if fit.minimum.stop == Stop::Steps {
+    let stalled = fit.minimum.stop == Stop::Steps;
+    if stalled || fit.covariance.is_err() {
         let newton = |x: &[f64]| loss_and_grad(&mut run, &free, x);
         let polished = newton_polish(newton, fit.minimum.clone(), fit.fisher.clone(), &bounds, &fit.fisher_steps, &NEWTON)?;
         evaluations += polished.minimum.evaluations - fit.minimum.evaluations;
-        if polished.newton_steps > 0 {
-            fit.covariance = invert_fisher(&polished.fisher);
+        let covariance = invert_fisher(&polished.fisher);
+        if polished.newton_steps > 0 && (stalled || covariance.is_ok()) {
+            fit.covariance = covariance;
             (fit.minimum, fit.fisher) = (polished.minimum, polished.fisher);
         }
     }

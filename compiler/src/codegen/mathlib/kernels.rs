@@ -55,6 +55,11 @@ const KEXP: [f64; 5] = [
 ];
 /// Largest |x| handled inline by exp (results stay normal and finite).
 pub const EXP_MAX: f64 = 708.0;
+/// Below this, e^x rounds to +0 (it is under half the least subnormal,
+/// 2^-1075, for x < −1075·ln 2 = −745.1332…), as libm returns: exp gives
+/// 0 inline there, so the far tails of a Gaussian envelope, e^(−u²) with
+/// u in the tens, take no libm call.
+pub const EXP_ZERO: f64 = -745.2;
 // e^r = 1 + r + r²·E(r), fit of (e^r − 1 − r)/r² on [−ln2/2 − 1e-3, ln2/2 + 1e-3].
 const EXP_FAST: [f64; 8] = [
     0.4999999999995404,

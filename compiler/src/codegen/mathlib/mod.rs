@@ -5,7 +5,7 @@
 //! Each function emits a fast path for the inputs it handles accurately and
 //! a cold block that calls libm through a caller-supplied [`SlowPath`]
 //! callback for everything else (NaN, ±inf, huge sin/cos arguments, exp
-//! arguments that overflow or underflow, log of non-positive or subnormal
+//! arguments that overflow or underflow to a subnormal, log of non-positive or subnormal
 //! numbers, ...), so results are always correct. The two blocks join in a
 //! merge block whose parameters are the results.
 //!
@@ -20,7 +20,8 @@
 //!   `sincos` costs one reduction. Inline domain |x| ≤ 1.6e6 (k < 2^20).
 //! * exp: `k = round(x/ln2)`, `r = x − k·ln2` (fdlibm's hi/lo split),
 //!   `Exact` uses fdlibm's rational form, `Fast`/`Fastest` a polynomial;
-//!   scaled by building `2^k` from bits. Inline domain |x| < 708.
+//!   scaled by building `2^k` from bits. Inline domain |x| < 708, and
+//!   x < −745.2, where e^x rounds to +0 as in libm.
 //! * log: `x = 2^k·m`, m ∈ [√½, √2), `s = f/(2+f)`, `log(1+f) = 2s + s·R(s²)`
 //!   (musl/fdlibm formulation). Inline domain: positive normal finite x.
 //! * cbrt: FreeBSD `s_cbrt.c` scheme: exponent/3 bit trick, a degree-4
@@ -147,7 +148,7 @@ use kernels::{cbrt_kernel, exp_kernel, log_kernel, sincos_kernel};
 
 pub use crate::ir::MathMode;
 pub(crate) use arith::{bitcast, select};
-pub use kernels::{EXP_MAX, SINCOS_MAX};
+pub use kernels::{EXP_MAX, EXP_ZERO, SINCOS_MAX};
 
 /// Calls the libm function `name` (the f64 name: "sin", "cos", "sincos",
 /// "exp", "log", "cbrt", "pow") on `args` of the emitter's type and returns
@@ -325,10 +326,26 @@ impl MathEmitter {
         self.sin_or_cos(b, x, slow, true)
     }
 
-    /// e^x (libm for |x| ≥ 708, NaN and ±inf).
+    /// e^x: 0 for x < [`EXP_ZERO`] (and −inf), libm for NaN, +inf and
+    /// |x| ≥ 708 above that.
     pub fn exp(&self, b: &mut FunctionBuilder, x: Value, slow: &mut SlowPath) -> Value {
         let tier = self.tier();
-        self.guarded(b, &[x], "exp", slow, |e, a| e.abs_lt(a[0], EXP_MAX), |e, a| vec![exp_kernel(e, a[0], tier)])[0]
+        let below = |e: &mut Ir, x: Value| {
+            let zero_below = e.c(EXP_ZERO);
+            e.b.ins().fcmp(FloatCC::LessThan, x, zero_below)
+        };
+        let ok = |e: &mut Ir, a: &[Value]| {
+            let inside = e.abs_lt(a[0], EXP_MAX);
+            let zero = below(e, a[0]);
+            e.b.ins().bor(inside, zero)
+        };
+        let fast = |e: &mut Ir, a: &[Value]| {
+            let y = exp_kernel(e, a[0], tier);
+            let zero = below(e, a[0]);
+            let z = e.c(0.0);
+            vec![e.select(zero, z, y)]
+        };
+        self.guarded(b, &[x], "exp", slow, ok, fast)[0]
     }
 
     /// ln x (libm for x ≤ 0, subnormal f64, +inf and NaN).

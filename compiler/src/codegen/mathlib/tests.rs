@@ -16,11 +16,22 @@ mod libm {
     }
 }
 
+thread_local! {
+    /// How many times this thread's kernels called libm's exp.
+    static EXP_CALLS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// libm's exp, counted in [`EXP_CALLS`] (kernels run on the test's thread).
+extern "C" fn counted_exp(x: f64) -> f64 {
+    EXP_CALLS.with(|c| c.set(c.get() + 1));
+    x.exp()
+}
+
 fn symbols() -> Vec<(&'static str, *const u8)> {
     vec![
         ("sin", f64::sin as fn(f64) -> f64 as *const u8),
         ("cos", f64::cos as fn(f64) -> f64 as *const u8),
-        ("exp", f64::exp as fn(f64) -> f64 as *const u8),
+        ("exp", counted_exp as extern "C" fn(f64) -> f64 as *const u8),
         ("log", f64::ln as fn(f64) -> f64 as *const u8),
         ("cbrt", f64::cbrt as fn(f64) -> f64 as *const u8),
         ("pow", f64::powf as fn(f64, f64) -> f64 as *const u8),
@@ -451,6 +462,27 @@ fn accuracy_cos() {
 #[test]
 fn accuracy_exp() {
     check(Func::Exp);
+}
+
+/// Arguments whose e^x rounds to +0 (the far tails of a Gaussian
+/// envelope) get +0 inline, without libm, in every inline mode; just above
+/// [`EXP_ZERO`], where e^x is subnormal, libm still computes it.
+#[test]
+fn exp_underflow_is_zero_inline() {
+    let tails: Vec<f64> = (1..1000).map(|k| EXP_ZERO - 0.5 * k as f64 * k as f64).chain([-1e300, f64::NEG_INFINITY]).collect();
+    for mode in [MathMode::Fast, MathMode::Fastest] {
+        let kernel = build(Func::Exp, types::F64, Imp::Inline(mode), None);
+        let (mut out, mut unused) = (vec![1.0; tails.len()], vec![0.0; tails.len()]);
+        let before = EXP_CALLS.with(|c| c.get());
+        kernel.run(&tails, &vec![0.0; tails.len()], &mut out, &mut unused);
+        assert_eq!(EXP_CALLS.with(|c| c.get()), before, "{mode:?}: libm called for an underflowing exp");
+        assert!(out.iter().all(|y| y.to_bits() == 0), "{mode:?}: e^x of the tails is not +0");
+        let subnormal = [-745.0, -720.0, -708.5];
+        let (mut out, mut unused) = ([0.0; 3], [0.0; 3]);
+        kernel.run(&subnormal, &[0.0; 3], &mut out, &mut unused);
+        assert_eq!(EXP_CALLS.with(|c| c.get()), before + 3, "{mode:?}: subnormal results come from libm");
+        assert_eq!(out, subnormal.map(f64::exp), "{mode:?}");
+    }
 }
 
 #[test]
