@@ -20,6 +20,10 @@ The other three are stand-ins: not real LIGO blips, and a classifier that
 labels them Blip has only shown that it does not need a blip to be a
 sine-Gaussian.
 
+With --gengli, a fifth set: blips from gengli's published generative
+networks trained on real H1 and L1 Blips (see generator_shape_sets.py;
+needs gengli and torch installed).
+
 With --real-class Tomte (or Koi_Fish), only the real-fit set is drawn,
 from the held-out fits of that Gravity Spy class, and the table gives the
 share labelled as that class: a check that a change made for one class
@@ -27,7 +31,7 @@ does not take another's real glitches.
 
 Usage: python3 scripts/blip_realism.py [--manifest models/glitch-classifier/glitch-classifier.json]
            [--gwml target/release/gwml] [--n 200] [--seed 7] [--snr 8,10,12,15,20,25,30]
-           [--real-class Blip|Tomte|Koi_Fish]
+           [--real-class Blip|Tomte|Koi_Fish] [--gengli]
 Needs numpy.
 """
 import argparse
@@ -41,7 +45,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from generator_shape_sets import FS, N, SETS, realfit  # noqa: E402
+from generator_shape_sets import FS, N, SETS, Gengli, realfit  # noqa: E402
 
 
 def band_limited(s):
@@ -72,6 +76,7 @@ def main():
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--snr", default="8,10,12,15,20,25,30")
     p.add_argument("--real-class", default="Blip", choices=["Blip", "Tomte", "Koi_Fish"])
+    p.add_argument("--gengli", action="store_true", help="add gengli's blips (needs gengli and torch)")
     a = p.parse_args()
     manifest = json.load(open(a.manifest))
     base = os.path.dirname(os.path.abspath(a.manifest))
@@ -85,6 +90,8 @@ def main():
     rows, keys = [], []
     real = functools.partial(realfit, label=a.real_class)
     sets = {"real-fit": real, **SETS} if a.real_class == "Blip" else {"real-fit": real}
+    if a.gengli:
+        sets["gengli"] = Gengli()
     for k, (name, shape) in enumerate(sets.items()):
         rng = np.random.default_rng(a.seed * 1000 + k)
         for snr in snrs:

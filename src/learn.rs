@@ -250,6 +250,9 @@ pub fn data(a: DataArgs, glitch: bool) -> Result<(), String> {
             if !a.generator.is_empty() {
                 return Err("error: --generator applies to glitch data only".into());
             }
+            if a.generator_share != 1.0 {
+                return Err("error: --generator-share applies to glitch data only".into());
+            }
             let (lo, hi) = parse_range(a.snr.as_deref().unwrap_or("6..15"))?;
             let ds = bursts(&BurstOptions { n: a.n, seed: a.seed, snr: (lo, hi), ..Default::default() }).map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;
@@ -263,7 +266,7 @@ pub fn data(a: DataArgs, glitch: bool) -> Result<(), String> {
         }
         true => {
             let snr = a.snr.as_deref().map(parse_range).transpose()?;
-            let mut shapes = GeneratorShapes::open(&a.generator, a.seed)?;
+            let mut shapes = GeneratorShapes::open(&a.generator, a.seed, a.generator_share)?;
             let ds = glitches_with(
                 &GlitchOptions {
                     n: a.n,

@@ -430,6 +430,11 @@ pub struct DataArgs {
     /// generators (at most one per class).
     #[arg(long, value_name = "GEN.json")]
     pub generator: Vec<PathBuf>,
+    /// glitch only: the chance that a row of a class a --generator draws
+    /// takes the generator's shape; the others keep their formula's (or a
+    /// real fit's) shape, as without --generator.
+    #[arg(long, value_name = "FRACTION", default_value_t = 1.0)]
+    pub generator_share: f64,
     /// The .npz file to write.
     #[arg(long, value_name = "PATH.npz")]
     pub out: PathBuf,

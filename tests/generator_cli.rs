@@ -131,6 +131,13 @@ fn fit_a_learned_generator_and_sample_from_it() {
     let (generated, formula) = (Dataset::read(Path::new(&p("gen.npz"))).unwrap(), Dataset::read(Path::new(&p("formula.npz"))).unwrap());
     assert_eq!(generated.arrays["x"].shape, vec![6, 4096]);
     assert_ne!(generated.arrays["x"].data, formula.arrays["x"].data, "the generator's shapes, not the formula's");
+    // `--generator-share` mixes them: at 0 every row keeps its formula's
+    // shape, on the same random stream as without a generator.
+    let (ok, _, err) = data(&p("none.npz"), &["--generator", &p("vae.json"), "--generator-share", "0"]);
+    assert!(ok, "{err}");
+    assert_eq!(Dataset::read(Path::new(&p("none.npz"))).unwrap().arrays["x"].data, formula.arrays["x"].data, "share 0 is the formula");
+    let (ok, _, err) = data(&p("bad.npz"), &["--generator", &p("vae.json"), "--generator-share", "1.5"]);
+    assert!(!ok && err.contains("the generator share 1.5 must be within 0..1"), "{err}");
     // `gwml data strain --generator` colours them by the PSD; the scan
     // finds them where the truth says, at their SNR.
     let (ok, out, err) = gwml(&[
@@ -266,6 +273,8 @@ fn bad_generator_inputs_are_clear_errors() {
     assert!(!ok && err.contains("cannot read") && err.contains("missing.json"), "{err}");
     let (ok, _, err) = gwml(&["data", "bursts", "--class", "blip", "--out", &p("b.npz")]);
     assert!(!ok && err.contains("--class applies to glitch data only"), "{err}");
+    let (ok, _, err) = gwml(&["data", "bursts", "--generator-share", "0.5", "--out", &p("b.npz")]);
+    assert!(!ok && err.contains("--generator-share applies to glitch data only"), "{err}");
 }
 
 /// One learned generator fitted to the Blips and Whistles of a file of every

@@ -113,7 +113,7 @@ pub fn data_strain(a: StrainArgs) -> Result<(), String> {
     if a.ifo.is_empty() || !a.ifo.chars().all(|c| c.is_ascii_alphanumeric()) {
         return Err(format!("error: --ifo `{}` must be a detector name such as H1", a.ifo));
     }
-    let mut shapes = GeneratorShapes::open(&a.generator, a.seed)?;
+    let mut shapes = GeneratorShapes::open(&a.generator, a.seed, 1.0)?;
     // Real fits' shapes from their own stream, so the formula draws of a
     // seed stay as they are.
     let mut real = RealShapes::new(a.seed.wrapping_add(0x5eed));

@@ -212,6 +212,11 @@ pub struct GeneratorShapes {
     generators: Vec<Generator>,
     sources: Vec<ShapeSource>,
     seed: u64,
+    /// The chance that a row of a generated class takes the generator's
+    /// shape (otherwise its formula's or a real fit's).
+    share: f64,
+    /// Decides each row's source, on a stream of its own.
+    pick: rand_pcg::Pcg64Mcg,
 }
 
 /// Where [`GeneratorShapes`] draws one class from, and its drawn rows not
@@ -228,8 +233,12 @@ const SHAPE_BATCH: usize = 256;
 
 impl GeneratorShapes {
     /// Reads the generator files (at most one per class); `seed` seeds the
-    /// draws.
-    pub fn open(paths: &[PathBuf], seed: u64) -> Result<GeneratorShapes, String> {
+    /// draws; `share` (in 0..=1) is the chance that a row of a generated
+    /// class takes the generator's shape.
+    pub fn open(paths: &[PathBuf], seed: u64, share: f64) -> Result<GeneratorShapes, String> {
+        if !(0.0..=1.0).contains(&share) {
+            return Err(format!("error: the generator share {share} must be within 0..1"));
+        }
         let (mut generators, mut sources) = (Vec::new(), Vec::<ShapeSource>::new());
         for path in paths {
             let g = Generator::read(path)?;
@@ -241,7 +250,8 @@ impl GeneratorShapes {
             }
             generators.push(g);
         }
-        Ok(GeneratorShapes { generators, sources, seed })
+        let pick = rand::SeedableRng::seed_from_u64(seed ^ 0x5EED_5A4E);
+        Ok(GeneratorShapes { generators, sources, seed, share, pick })
     }
 
     /// The next clean whitened shape of `class` (4096 samples at 4096 Hz),
@@ -249,6 +259,9 @@ impl GeneratorShapes {
     pub fn shape(&mut self, class: usize) -> Result<Option<Vec<f64>>, gwml_runtime::Error> {
         let seed = self.seed;
         let Some(s) = self.sources.iter_mut().find(|s| s.class == class) else { return Ok(None) };
+        if self.share < 1.0 && !rand::Rng::random_bool(&mut self.pick, self.share) {
+            return Ok(None);
+        }
         if s.buffer.is_empty() {
             let batch_seed = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ ((class as u64) << 32) ^ s.batches;
             let g = &self.generators[s.generator];
