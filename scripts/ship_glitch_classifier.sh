@@ -5,7 +5,7 @@
 # the glitch experiment's differentiable template bank + head, its best
 # method: results/glitch/README.md).
 #
-#     bash scripts/ship_glitch_classifier.sh            # ~30 minutes on 2 cores (181 s an epoch)
+#     bash scripts/ship_glitch_classifier.sh            # ~20-30 minutes on 2 cores (105-181 s an epoch)
 #
 # Data: `gwml data glitch --centred`: the benchmark population of eight
 # classes (lab/src/synth/population.rs: shapes, SNR ranges and noise after
@@ -19,7 +19,7 @@
 # validation loss is shipped. MODEL=cnn trains the CNN instead (the
 # manifest must then name lab/models/glitch/cnn.gw and cnn.safetensors).
 #
-# A third of the Blips (GENERATOR_SHARE) take their shape from the learned
+# Two thirds of the Blips (GENERATOR_SHARE) take their shape from the learned
 # generator GENERATOR (models/generators/blip-gengli.json; GENERATOR= for
 # none), fitted to 500 blips of gengli's generative networks trained on
 # real H1 and L1 Blips (Lopez et al. 2022), which reach down to 50-80 Hz
@@ -35,7 +35,7 @@ MODEL=${MODEL:-template_net}
 N_TRAIN=${N_TRAIN:-40000}
 EPOCHS=${EPOCHS:-10}
 GENERATOR=${GENERATOR-models/generators/blip-gengli.json}
-GENERATOR_SHARE=${GENERATOR_SHARE:-0.33}
+GENERATOR_SHARE=${GENERATOR_SHARE:-0.67}
 WORK=${WORK:-$(mktemp -d)}
 mkdir -p "$WORK"
 cargo build --release --locked --bin gwml
