@@ -173,10 +173,12 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
         let newton = |x: &[f64]| loss_and_grad(&mut run, &free, x);
         let polished = newton_polish(newton, fit.minimum.clone(), fit.fisher.clone(), &bounds, &fit.fisher_steps, &NEWTON)?;
         evaluations += polished.minimum.evaluations - fit.minimum.evaluations;
-        let covariance = invert_fisher(&polished.fisher);
-        if polished.newton_steps > 0 && (stalled || covariance.is_ok()) {
-            fit.covariance = covariance;
-            (fit.minimum, fit.fisher) = (polished.minimum, polished.fisher);
+        if polished.newton_steps > 0 {
+            let covariance = invert_fisher(&polished.fisher);
+            if stalled || covariance.is_ok() {
+                fit.covariance = covariance;
+                (fit.minimum, fit.fisher) = (polished.minimum, polished.fisher);
+            }
         }
     }
     let mut x = fit.minimum.x.clone();
