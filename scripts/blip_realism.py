@@ -29,9 +29,13 @@ from the held-out fits of that Gravity Spy class, and the table gives the
 share labelled as that class: a check that a change made for one class
 does not take another's real glitches.
 
+With --by-frequency, a second table: the same rows over all SNRs, by
+the frequency below which half of each clean shape's whitened energy
+lies (its median frequency), to show where in the band the misses are.
+
 Usage: python3 scripts/blip_realism.py [--manifest models/glitch-classifier/glitch-classifier.json]
            [--gwml target/release/gwml] [--n 200] [--seed 7] [--snr 8,10,12,15,20,25,30]
-           [--real-class Blip|Tomte|Koi_Fish] [--gengli]
+           [--real-class Blip|Tomte|Koi_Fish] [--gengli] [--by-frequency]
 Needs numpy.
 """
 import argparse
@@ -61,11 +65,31 @@ def centred(s, at):
     return np.roll(s, int(round(at * FS - centre)))
 
 
+def clean_row(shape, rng, t):
+    """A draw of `shape` band-limited and centred at 0.4-0.6 s."""
+    return centred(band_limited(shape(rng, t)), rng.uniform(0.4, 0.6))
+
+
 def noisy_row(shape, rng, t, snr):
     """One whitened row: a draw of `shape` band-limited, centred at 0.4-0.6 s,
     scaled to `snr` and put in fresh unit-variance white noise."""
-    s = centred(band_limited(shape(rng, t)), rng.uniform(0.4, 0.6))
+    s = clean_row(shape, rng, t)
     return s / np.linalg.norm(s) * snr + rng.standard_normal(N)
+
+
+def median_frequency(s):
+    """The frequency (Hz) below which half of the energy of `s` lies."""
+    power = np.abs(np.fft.rfft(s)) ** 2
+    return np.fft.rfftfreq(N, 1 / FS)[np.searchsorted(np.cumsum(power) / power.sum(), 0.5)]
+
+
+# Bands of median frequency for --by-frequency (Hz).
+FREQUENCY_BANDS = [(0, 40), (40, 50), (50, 60), (60, 80), (80, 120), (120, 200), (200, 2048)]
+
+
+def most_common_other(labels, target, classes):
+    others = labels[labels != target]
+    return classes[np.bincount(others, minlength=len(classes)).argmax()] if len(others) else "-"
 
 
 def main():
@@ -77,6 +101,7 @@ def main():
     p.add_argument("--snr", default="8,10,12,15,20,25,30")
     p.add_argument("--real-class", default="Blip", choices=["Blip", "Tomte", "Koi_Fish"])
     p.add_argument("--gengli", action="store_true", help="add gengli's blips (needs gengli and torch)")
+    p.add_argument("--by-frequency", action="store_true", help="add a table by the shapes' median frequency")
     a = p.parse_args()
     manifest = json.load(open(a.manifest))
     base = os.path.dirname(os.path.abspath(a.manifest))
@@ -87,7 +112,7 @@ def main():
     blip = classes.index(target)
     snrs = [float(s) for s in a.snr.split(",")]
     t = np.arange(N) / FS
-    rows, keys = [], []
+    rows, keys, medians = [], [], []
     real = functools.partial(realfit, label=a.real_class)
     sets = {"real-fit": real, **SETS} if a.real_class == "Blip" else {"real-fit": real}
     if a.gengli:
@@ -96,8 +121,10 @@ def main():
         rng = np.random.default_rng(a.seed * 1000 + k)
         for snr in snrs:
             for _ in range(a.n):
-                rows.append(noisy_row(shape, rng, t, snr))
+                clean = clean_row(shape, rng, t)
+                rows.append(clean / np.linalg.norm(clean) * snr + rng.standard_normal(N))
                 keys.append((name, snr))
+                medians.append(median_frequency(clean))
     with tempfile.TemporaryDirectory() as work:
         x, logits = os.path.join(work, "x.npy"), os.path.join(work, "logits.npy")
         np.save(x, np.array(rows))
@@ -114,10 +141,19 @@ def main():
         for snr in snrs:
             mine = labels[[i for i, key in enumerate(keys) if key[0] == name and key[1] == snr]]
             share = 100 * np.mean(mine == blip)
-            others = mine[mine != blip]
-            worst = classes[np.bincount(others, minlength=len(classes)).argmax()] if len(others) else "-"
-            cells.append(f"{share:.0f} % ({worst})")
+            cells.append(f"{share:.0f} % ({most_common_other(mine, blip, classes)})")
         print(f"| {name} | " + " | ".join(cells) + " |")
+    if a.by_frequency:
+        medians = np.array(medians)
+        print(f"\nby median frequency of the clean shape, all SNRs (rows; share labelled {target})\n")
+        print("| set | " + " | ".join(f"{lo}-{hi} Hz" for lo, hi in FREQUENCY_BANDS) + " |")
+        print("|---|" + "---|" * len(FREQUENCY_BANDS))
+        for name in sets:
+            cells = []
+            for lo, hi in FREQUENCY_BANDS:
+                mine = labels[(keys[:, 0] == name) & (medians >= lo) & (medians < hi)]
+                cells.append(f"{len(mine)}: {100 * np.mean(mine == blip):.0f} % ({most_common_other(mine, blip, classes)})" if len(mine) else "-")
+            print(f"| {name} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ fn each_family_is_told_apart_and_its_params_recovered() {
     let outcomes = run_campaign(&o, |_| {}).unwrap();
     assert_eq!(outcomes.len(), 28);
     // A blip below 80 Hz (they start at 70 Hz) may be called a Tomte
-    // (25-55 Hz), and that is the prior's verdict.
+    // (25-45 Hz), and that is the prior's verdict.
     let f0 = |o: &Outcome| o.injection.params.iter().find(|p| p.0 == "f0").map_or(f64::NAN, |p| p.1);
     let overlap = |o: &Outcome| o.verdict() == "Tomte" && GLITCH_CLASSES[o.injection.class] == "Blip" && f0(o) < 80.0;
     let right = outcomes.iter().filter(|o| o.right() || overlap(o)).count();

@@ -91,9 +91,12 @@ pub fn draw_snr<R: Rng>(rng: &mut R, class: usize, fixed: Option<(f64, f64)>) ->
 /// - Scratchy: carrier 60–350 Hz, 12–25 arches per second wobbling the
 ///   frequency by up to 25 %, envelope 1/e half-width 0.4–1.25 s.
 /// - Chirp: TaylorF2 from 30 Hz, chirp mass 18–40 Msun, mass ratio 0.3–1.
-/// - Tomte: a burst at 25–55 Hz (98 % of the real H1/L1 Tomte fits peak
-///   below 51 Hz), Q 1.5–4, decaying 1–3 times slower than
-///   it rises.
+/// - Tomte: a burst at 25–45 Hz, Q 1.5–4, decaying 1–3 times slower than
+///   it rises. Whitened, its peak is 1–6 Hz above f0 (higher at low Q):
+///   27–50 Hz, as the real H1/L1 Tomte fits' whitened peaks are (5–95 %:
+///   33–44 Hz; 98 % below 51 Hz). Up to 55 Hz, one formula Tomte in six
+///   peaked above 51 Hz, among the low Blips of a generator trained on
+///   real L1 Blips (gengli), which the classifier then called Tomte.
 /// - Scattered Light: arches peaking at a fringe frequency of 22–70 Hz,
 ///   surface motion at 0.15–2 Hz (one arch every 0.25–3.3 s), second and
 ///   third harmonics at 0–50 % and its square, envelope half-width 0.75–2 s.
@@ -188,7 +191,7 @@ pub fn draw_shape<R: Rng>(rng: &mut R, class: usize) -> Vec<(&'static str, f64)>
             set("tc", rng.random_range(0.8..=0.95));
         }
         TOMTE => {
-            set("f0", log_uniform(rng, 25.0, 55.0));
+            set("f0", log_uniform(rng, 25.0, 45.0));
             set("q", log_uniform(rng, 1.5, 4.0));
             set("asym", log_uniform(rng, 1.0, 3.0));
         }
