@@ -92,6 +92,37 @@ def most_common_other(labels, target, classes):
     return classes[np.bincount(others, minlength=len(classes)).argmax()] if len(others) else "-"
 
 
+def classify(manifest_path, gwml, rows):
+    """Labels (argmax of the logits) of `rows` by the classifier of the
+    manifest at `manifest_path`, through `gwml predict`; and its classes."""
+    manifest = json.load(open(manifest_path))
+    base = os.path.dirname(os.path.abspath(manifest_path))
+    model = os.path.normpath(os.path.join(base, manifest["model"]))
+    weights = os.path.normpath(os.path.join(base, manifest["weights"]))
+    with tempfile.TemporaryDirectory() as work:
+        x, logits = os.path.join(work, "x.npy"), os.path.join(work, "logits.npy")
+        np.save(x, np.array(rows))
+        cmd = [gwml, "predict", model, "--scene", manifest.get("scene", "classify"), "--weights", weights,
+               "--input", f"{manifest.get('input', 'x')}={x}", "--output", f"{manifest.get('output', 'logits')}={logits}"]
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+        return np.load(logits).argmax(axis=1), manifest["classes"]
+
+
+def print_share_table(target, classes, labels, keys, names, snrs):
+    """A Markdown table: per set (row) and SNR (column), the share of rows
+    labelled `target` (keys: an object array of (set, SNR) per row), and
+    the most common other label."""
+    print("| set | " + " | ".join(f"SNR {s:g}" for s in snrs) + " |")
+    print("|---|" + "---|" * len(snrs))
+    index = classes.index(target)
+    for name in names:
+        cells = []
+        for snr in snrs:
+            mine = labels[(keys[:, 0] == name) & (keys[:, 1] == snr)]
+            cells.append(f"{100 * np.mean(mine == index):.0f} % ({most_common_other(mine, index, classes)})")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--manifest", default="models/glitch-classifier/glitch-classifier.json")
@@ -103,13 +134,7 @@ def main():
     p.add_argument("--gengli", action="store_true", help="add gengli's blips (needs gengli and torch)")
     p.add_argument("--by-frequency", action="store_true", help="add a table by the shapes' median frequency")
     a = p.parse_args()
-    manifest = json.load(open(a.manifest))
-    base = os.path.dirname(os.path.abspath(a.manifest))
-    model = os.path.normpath(os.path.join(base, manifest["model"]))
-    weights = os.path.normpath(os.path.join(base, manifest["weights"]))
-    classes = manifest["classes"]
     target = a.real_class.replace("_", " ")
-    blip = classes.index(target)
     snrs = [float(s) for s in a.snr.split(",")]
     t = np.arange(N) / FS
     rows, keys, medians = [], [], []
@@ -125,24 +150,11 @@ def main():
                 rows.append(clean / np.linalg.norm(clean) * snr + rng.standard_normal(N))
                 keys.append((name, snr))
                 medians.append(median_frequency(clean))
-    with tempfile.TemporaryDirectory() as work:
-        x, logits = os.path.join(work, "x.npy"), os.path.join(work, "logits.npy")
-        np.save(x, np.array(rows))
-        cmd = [a.gwml, "predict", model, "--scene", manifest.get("scene", "classify"), "--weights", weights,
-               "--input", f"{manifest.get('input', 'x')}={x}", "--output", f"{manifest.get('output', 'logits')}={logits}"]
-        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-        labels = np.load(logits).argmax(axis=1)
-    print(f"share labelled {target} by {a.manifest} ({a.n} rows per cell; most common other label in brackets)\n")
-    print("| set | " + " | ".join(f"SNR {s:g}" for s in snrs) + " |")
-    print("|---|" + "---|" * len(snrs))
+    labels, classes = classify(a.manifest, a.gwml, rows)
+    blip = classes.index(target)
     keys = np.array(keys, dtype=object)
-    for name in sets:
-        cells = []
-        for snr in snrs:
-            mine = labels[[i for i, key in enumerate(keys) if key[0] == name and key[1] == snr]]
-            share = 100 * np.mean(mine == blip)
-            cells.append(f"{share:.0f} % ({most_common_other(mine, blip, classes)})")
-        print(f"| {name} | " + " | ".join(cells) + " |")
+    print(f"share labelled {target} by {a.manifest} ({a.n} rows per cell; most common other label in brackets)\n")
+    print_share_table(target, classes, labels, keys, sets, snrs)
     if a.by_frequency:
         medians = np.array(medians)
         print(f"\nby median frequency of the clean shape, all SNRs (rows; share labelled {target})\n")
