@@ -445,9 +445,16 @@ pub struct ExperimentArgs {
     /// Which experiment.
     #[arg(value_enum)]
     pub which: ExperimentKind,
-    /// Small training sets and test sets: minutes instead of hours.
-    #[arg(long)]
+    /// `glitch`: every method, table and plot at small sizes, a check that
+    /// the pipeline runs (~5 minutes on 2 cores; its numbers are not the
+    /// benchmark's).
+    #[arg(long, conflicts_with = "standard")]
     pub quick: bool,
+    /// `glitch`: training sets of 500, 1,500 and 5,000, two seeds each: the
+    /// README's tables (~15 minutes on 2 cores). Without either flag, the
+    /// full run: up to 50,000 examples, five seeds (hours).
+    #[arg(long)]
+    pub standard: bool,
     /// Directory for the tables (Markdown, CSV) and plots (PNG) [default:
     /// results/glitch, results/explain].
     #[arg(long, value_name = "DIR")]
@@ -578,7 +585,11 @@ fn main() -> ExitCode {
         Command::Generator(GeneratorCommand::Sample(a)) => generator::sample_command(a),
         Command::Experiment(a) => match a.which {
             ExperimentKind::Glitch => experiment::glitch(&experiment::GlitchExperiment {
-                quick: a.quick,
+                budget: match (a.quick, a.standard) {
+                    (true, _) => experiment::Budget::Quick,
+                    (_, true) => experiment::Budget::Standard,
+                    _ => experiment::Budget::Full,
+                },
                 out: a.out.unwrap_or_else(|| "results/glitch".into()),
                 threads: a.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
             }),

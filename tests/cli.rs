@@ -103,6 +103,10 @@ fn errors_are_reported_not_panics() {
     let (ok, _, err) = gwml(&["compile", "examples/chirp_fit.gw", "--scene", "chirp_fti"]);
     assert!(!ok);
     assert!(err.contains("did you mean `chirp_fit`"), "{err}");
+    // One budget per experiment run.
+    let (ok, _, err) = gwml(&["experiment", "glitch", "--quick", "--standard", "--out", "/nonexistent/never-written"]);
+    assert!(!ok);
+    assert!(err.contains("cannot be used with"), "{err}");
 }
 
 #[test]

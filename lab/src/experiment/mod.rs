@@ -79,10 +79,35 @@ const LOW_SNR: Option<(f64, f64)> = Some((5.0, 12.0));
 /// Knee of the shifted PSD (see [`GlitchOptions::psd_knee`]).
 const SHIFTED_PSD_KNEE: f64 = 60.0;
 
+/// How large a run of `gwml experiment glitch` is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Budget {
+    /// Every method, table and plot at small sizes and few steps: a check
+    /// that the pipeline runs end to end, in ~5 minutes on 2 cores. Its
+    /// numbers are not the benchmark's.
+    Quick,
+    /// Training sets of 500, 1,500 and 5,000, two seeds: the README's
+    /// tables (~15 minutes on 2 cores).
+    Standard,
+    /// Training sets up to 50,000, five seeds (hours).
+    Full,
+}
+
+impl Budget {
+    /// The command line that runs this budget.
+    pub fn command(self) -> &'static str {
+        match self {
+            Budget::Quick => "gwml experiment glitch --quick",
+            Budget::Standard => "gwml experiment glitch --standard",
+            Budget::Full => "gwml experiment glitch",
+        }
+    }
+}
+
 /// Options of `gwml experiment glitch`.
 pub struct GlitchExperiment {
-    /// Small sizes, for a run of minutes.
-    pub quick: bool,
+    /// How large the run is.
+    pub budget: Budget,
     /// Where the tables and plots go.
     pub out: PathBuf,
     /// Worker threads.
@@ -110,9 +135,20 @@ struct Plan {
 }
 
 impl Plan {
-    fn new(quick: bool) -> Plan {
-        if quick {
-            Plan {
+    fn new(budget: Budget) -> Plan {
+        match budget {
+            Budget::Quick => Plan {
+                sizes: vec![300, 1000],
+                reference: 1000,
+                val: 300,
+                test: 400,
+                tune: 500,
+                steps: 100,
+                min_epochs: 2,
+                max_epochs: 6,
+                seeds: 2,
+            },
+            Budget::Standard => Plan {
                 sizes: vec![500, 1500, 5000],
                 reference: 5000,
                 val: 600,
@@ -122,9 +158,8 @@ impl Plan {
                 min_epochs: 6,
                 max_epochs: 20,
                 seeds: 2,
-            }
-        } else {
-            Plan {
+            },
+            Budget::Full => Plan {
                 sizes: vec![500, 1500, 5000, 15000, 50000],
                 reference: 5000,
                 val: 1200,
@@ -134,7 +169,7 @@ impl Plan {
                 min_epochs: 4,
                 max_epochs: 60,
                 seeds: 5,
-            }
+            },
         }
     }
 
@@ -307,7 +342,7 @@ struct Scored {
 
 /// Runs the experiment and writes its results.
 pub fn glitch(o: &GlitchExperiment) -> Result<(), String> {
-    run_plan(o, &Plan::new(o.quick))?;
+    run_plan(o, &Plan::new(o.budget))?;
     println!("{}", std::fs::read_to_string(o.out.join("README.md")).unwrap_or_default());
     Ok(())
 }
@@ -622,7 +657,7 @@ fn write_results(
     }
 
     let mut md = String::new();
-    let mode = if o.quick { "gwml experiment glitch --quick" } else { "gwml experiment glitch" };
+    let mode = o.budget.command();
     let _ = writeln!(md, "# Glitch experiment results\n");
     let _ = writeln!(
         md,
@@ -701,7 +736,7 @@ mod tests {
     /// Design of a learner, on validation splits only: trains each `.gw`
     /// file named in `GWML_MODELS` (comma-separated; the shipped one by
     /// default) as learner `GWML_LEARNER` (`gravity_spy` by default) on the
-    /// `--quick` reference set with the `--quick` budget, two seeds, and
+    /// `--standard` reference set with the `--standard` budget, two seeds, and
     /// prints accuracy on the validation split and on a validation draw
     /// with the shifted PSD (seed [`VAL_SHIFTED_PSD_SEED`], not a test
     /// set's); `GWML_QNORM=median` normalises Q-scan rows by their own
@@ -709,7 +744,7 @@ mod tests {
     #[test]
     #[ignore = "design: GWML_LEARNER=template_net GWML_MODELS=A.gw,B.gw prints each variant's validation accuracy"]
     fn learner_variants_on_the_validation_split() {
-        let plan = Plan::new(true);
+        let plan = Plan::new(Budget::Standard);
         let key = std::env::var("GWML_LEARNER").unwrap_or_else(|_| "gravity_spy".into());
         let shipped = LEARNERS.iter().find(|l| l.key == key).unwrap_or_else(|| panic!("no learner `{key}`"));
         let draw = |n, seed, psd_knee| glitches(&GlitchOptions { n, seed, snr: SNR, psd_knee, ..Default::default() }).unwrap();
@@ -754,7 +789,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&out);
         let plan =
             Plan { sizes: vec![30, 60], reference: 60, val: 30, test: 60, tune: 60, steps: 2, min_epochs: 1, max_epochs: 1, seeds: 2 };
-        let o = GlitchExperiment { quick: true, out: out.clone(), threads: 2 };
+        let o = GlitchExperiment { budget: Budget::Quick, out: out.clone(), threads: 2 };
         run_plan(&o, &plan).unwrap();
         let read = |name: &str| std::fs::read_to_string(out.join(name)).unwrap();
         // Rules, then each learner and the two ablations at the reference size
