@@ -123,40 +123,53 @@ def print_share_table(target, classes, labels, keys, names, snrs):
         print(f"| {name} | " + " | ".join(cells) + " |")
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def arguments(doc):
+    """The options every realism script takes: classifier, binary, rows per
+    cell, seed and SNRs."""
+    p = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--manifest", default="models/glitch-classifier/glitch-classifier.json")
     p.add_argument("--gwml", default="target/release/gwml")
     p.add_argument("--n", type=int, default=200)
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--snr", default="8,10,12,15,20,25,30")
+    return p
+
+
+def draw_rows(sets, snrs, n, seed):
+    """`n` rows per set and SNR (set k on its own seed, seed * 1000 + k):
+    the rows, their (set, SNR) keys as an object array, and the median
+    frequency of each row's clean shape."""
+    t = np.arange(N) / FS
+    rows, keys, medians = [], [], []
+    for k, (name, shape) in enumerate(sets.items()):
+        rng = np.random.default_rng(seed * 1000 + k)
+        for snr in snrs:
+            for _ in range(n):
+                clean = clean_row(shape, rng, t)
+                rows.append(clean / np.linalg.norm(clean) * snr + rng.standard_normal(N))
+                keys.append((name, snr))
+                medians.append(median_frequency(clean))
+    return rows, np.array(keys, dtype=object), np.array(medians)
+
+
+def main():
+    p = arguments(__doc__)
     p.add_argument("--real-class", default="Blip", choices=["Blip", "Tomte", "Koi_Fish"])
     p.add_argument("--gengli", action="store_true", help="add gengli's blips (needs gengli and torch)")
     p.add_argument("--by-frequency", action="store_true", help="add a table by the shapes' median frequency")
     a = p.parse_args()
     target = a.real_class.replace("_", " ")
     snrs = [float(s) for s in a.snr.split(",")]
-    t = np.arange(N) / FS
-    rows, keys, medians = [], [], []
     real = functools.partial(realfit, label=a.real_class)
     sets = {"real-fit": real, **SETS} if a.real_class == "Blip" else {"real-fit": real}
     if a.gengli:
         sets["gengli"] = Gengli()
-    for k, (name, shape) in enumerate(sets.items()):
-        rng = np.random.default_rng(a.seed * 1000 + k)
-        for snr in snrs:
-            for _ in range(a.n):
-                clean = clean_row(shape, rng, t)
-                rows.append(clean / np.linalg.norm(clean) * snr + rng.standard_normal(N))
-                keys.append((name, snr))
-                medians.append(median_frequency(clean))
+    rows, keys, medians = draw_rows(sets, snrs, a.n, a.seed)
     labels, classes = classify(a.manifest, a.gwml, rows)
     blip = classes.index(target)
-    keys = np.array(keys, dtype=object)
     print(f"share labelled {target} by {a.manifest} ({a.n} rows per cell; most common other label in brackets)\n")
     print_share_table(target, classes, labels, keys, sets, snrs)
     if a.by_frequency:
-        medians = np.array(medians)
         print(f"\nby median frequency of the clean shape, all SNRs (rows; share labelled {target})\n")
         print("| set | " + " | ".join(f"{lo}-{hi} Hz" for lo, hi in FREQUENCY_BANDS) + " |")
         print("|---|" + "---|" * len(FREQUENCY_BANDS))

@@ -27,15 +27,14 @@ Usage: python3 scripts/whistle_realism.py [--manifest models/glitch-classifier/g
            [--gwml target/release/gwml] [--n 200] [--seed 7] [--snr 8,10,12,15,20,25,30]
 Needs numpy.
 """
-import argparse
 import os
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from blip_realism import classify, clean_row, print_share_table  # noqa: E402
-from generator_shape_sets import FS, N  # noqa: E402
+from blip_realism import arguments, classify, draw_rows, print_share_table  # noqa: E402
+from generator_shape_sets import FS  # noqa: E402
 
 
 def log_uniform(rng, lo, hi):
@@ -99,26 +98,12 @@ SETS = {"arc": arc, "linear-v": linear_v, "harmonic": harmonic, "one-arm": one_a
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--manifest", default="models/glitch-classifier/glitch-classifier.json")
-    p.add_argument("--gwml", default="target/release/gwml")
-    p.add_argument("--n", type=int, default=200)
-    p.add_argument("--seed", type=int, default=7)
-    p.add_argument("--snr", default="8,10,12,15,20,25,30")
-    a = p.parse_args()
+    a = arguments(__doc__).parse_args()
     snrs = [float(s) for s in a.snr.split(",")]
-    t = np.arange(N) / FS
-    rows, keys = [], []
-    for k, (name, shape) in enumerate(SETS.items()):
-        rng = np.random.default_rng(a.seed * 1000 + k)
-        for snr in snrs:
-            for _ in range(a.n):
-                clean = clean_row(shape, rng, t)
-                rows.append(clean / np.linalg.norm(clean) * snr + rng.standard_normal(N))
-                keys.append((name, snr))
+    rows, keys, _ = draw_rows(SETS, snrs, a.n, a.seed)
     labels, classes = classify(a.manifest, a.gwml, rows)
     print(f"share labelled Whistle by {a.manifest} ({a.n} rows per cell; most common other label in brackets)\n")
-    print_share_table("Whistle", classes, labels, np.array(keys, dtype=object), SETS, snrs)
+    print_share_table("Whistle", classes, labels, keys, SETS, snrs)
 
 
 if __name__ == "__main__":
