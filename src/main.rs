@@ -446,8 +446,8 @@ pub struct ExperimentArgs {
     #[arg(value_enum)]
     pub which: ExperimentKind,
     /// `glitch`: every method, table and plot at small sizes, a check that
-    /// the pipeline runs (~5 minutes on 2 cores; its numbers are not the
-    /// benchmark's).
+    /// the pipeline runs (about 2 minutes on 2 cores; its numbers are not
+    /// the benchmark's).
     #[arg(long, conflicts_with = "standard")]
     pub quick: bool,
     /// `glitch`: training sets of 500, 1,500 and 5,000, two seeds each: the

@@ -3,7 +3,7 @@
 //! missing data skipped and reported.
 
 use gwml_lab::strain::{simulate, Injection, NoiseCurve, StrainOptions};
-use gwml_runtime::spectrum::Spectrum;
+use gwml_runtime::spectrum::{Kind, Spectrum};
 use gwml_strain::classifier::{Classifier, Manifest};
 use gwml_strain::scan::{Report, ScanOptions, Scanner};
 use gwml_strain::series::SkipReason;
@@ -102,21 +102,7 @@ fn pure_noise_makes_at_most_one_trigger_per_100_s_above_snr_8() {
 /// modes near 500, 1000 and 1500 Hz (×3000, ×1000, ×300), each a Lorentzian
 /// 0.01 Hz wide in power on a 0.002 Hz grid.
 fn o3_with_lines() -> Spectrum {
-    let csv = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/o3_asd.csv")).unwrap();
-    let base: Vec<(f64, f64)> = csv
-        .lines()
-        .skip(1)
-        .map(|l| {
-            let (f, a) = l.split_once(',').unwrap();
-            (f.parse().unwrap(), a.parse().unwrap())
-        })
-        .collect();
-    let asd = |f: f64| {
-        let i = base.partition_point(|p| p.0 < f).clamp(1, base.len() - 1);
-        let ((f0, a0), (f1, a1)) = (base[i - 1], base[i]);
-        let t = ((f - f0) / (f1 - f0)).clamp(0.0, 1.0);
-        (a0.ln() + t * (a1.ln() - a0.ln())).exp()
-    };
+    let base = Spectrum::read(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/o3_asd.csv"), Kind::Asd).unwrap();
     let mut lines = vec![(60.0, 100.0), (120.0, 30.0), (180.0, 30.0), (17.1, 100.0), (410.3, 100.0), (1083.7, 100.0)];
     lines.extend((0..6).map(|i| (500.0 + 3.1 * i as f64, 3000.0)));
     lines.extend((0..6).map(|i| (1000.0 + 6.2 * i as f64, 1000.0)));
@@ -131,8 +117,9 @@ fn o3_with_lines() -> Spectrum {
     let psd = freqs
         .iter()
         .map(|&f| {
-            let peaks: f64 = lines.iter().map(|(fl, k)| (k * asd(*fl)).powi(2) * width * width / ((f - fl).powi(2) + width * width)).sum();
-            asd(f).powi(2) + peaks
+            let peaks: f64 =
+                lines.iter().map(|(fl, k)| k * k * base.psd_at(*fl) * width * width / ((f - fl).powi(2) + width * width)).sum();
+            base.psd_at(f) + peaks
         })
         .collect();
     Spectrum::new(freqs, psd, "O3-like ASD with lines").unwrap()

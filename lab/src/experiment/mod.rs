@@ -83,8 +83,8 @@ const SHIFTED_PSD_KNEE: f64 = 60.0;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Budget {
     /// Every method, table and plot at small sizes and few steps: a check
-    /// that the pipeline runs end to end, in ~5 minutes on 2 cores. Its
-    /// numbers are not the benchmark's.
+    /// that the pipeline runs end to end, in about 2 minutes on 2 cores.
+    /// Its numbers are not the benchmark's.
     Quick,
     /// Training sets of 500, 1,500 and 5,000, two seeds: the README's
     /// tables (~15 minutes on 2 cores).
