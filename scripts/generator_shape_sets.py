@@ -85,22 +85,28 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 @functools.lru_cache(maxsize=None)
+def real_fit_snrs(label):
+    """The fitted SNRs of the held-out fits of `label`, in order."""
+    return [snr for (_, _, snr) in _real_fit_table(label)[0]]
+
+
 def _real_fit_table(label="Blip"):
     import csv
 
     rows = csv.DictReader(open(os.path.join(ROOT, "lab/data/real_glitch_fits.csv")))
     fits = [r for r in rows if r["label"] == label and r["ifo"] in ("H1", "L1")]
-    held_out = [(float(r["f0"]), float(r["gbw"])) for r in fits[1::2]]
+    held_out = [(float(r["f0"]), float(r["gbw"]), float(r["snr"])) for r in fits[1::2]]
     asd = np.zeros(N // 2 + 1)
     for r in csv.DictReader(open(os.path.join(ROOT, "lab/data/o3_asd.csv"))):
         asd[int(r["frequency_hz"])] = float(r["asd_per_sqrt_hz"])
     return held_out, asd
 
 
-def realfit(rng, t, label="Blip"):
-    """A held-out real fit of Gravity Spy class `label` (Blip, Tomte, Koi_Fish)."""
+def realfit(rng, t, label="Blip", fit=None):
+    """A held-out real fit of Gravity Spy class `label` (Blip, Tomte,
+    Koi_Fish), at random or the one at position `fit` of the held-out half."""
     held_out, asd = _real_fit_table(label)
-    f0, gbw = held_out[rng.integers(len(held_out))]
+    f0, gbw, _ = held_out[rng.integers(len(held_out)) if fit is None else fit]
     f = np.fft.rfftfreq(N, 1 / FS)
     inband = asd > 0
     t0, phi = rng.uniform(0.3, 0.7), rng.uniform(0, 2 * np.pi)

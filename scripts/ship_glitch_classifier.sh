@@ -10,7 +10,7 @@
 # Data: `gwml data glitch --centred`: the benchmark population of eight
 # classes (lab/src/synth/population.rs: shapes, SNR ranges and noise after
 # Gravity Spy's numbers, each class at its own overlapping SNR range,
-# half the Blips and Tomtes shaped after real O3 glitches' fits
+# half the Blips, Koi Fish and Tomtes shaped after real O3 glitches' fits
 # (lab/src/synth/real_fits.rs), residual lines, PSD misestimates and weak
 # transients in the noise) with every signal centred as a scan's 1 s
 # trigger window sees it (energy centres at 0.4-0.6 s for every class), so

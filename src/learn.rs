@@ -11,7 +11,7 @@ use gwml::runtime::train::{EpochReport, Group, TrainOptions, Trainer};
 use gwml::{Model, Value};
 use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
-use gwml_lab::synth::{bursts, glitches_with, BurstOptions, GlitchOptions, CENTRED, GLITCH_CLASSES};
+use gwml_lab::synth::{bursts, glitches_with, BurstOptions, GlitchOptions, Shape, CENTRED, GLITCH_CLASSES};
 
 use crate::cluster::World;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -277,7 +277,7 @@ pub fn data(a: DataArgs, glitch: bool) -> Result<(), String> {
                     position: if a.centred { CENTRED } else { GlitchOptions::default().position },
                     ideal_noise: a.ideal_noise,
                 },
-                &mut |class| shapes.shape(class),
+                &mut |class| Ok(shapes.shape(class)?.map(Shape::from)),
             )
             .map_err(render)?;
             dataset::write_npz(&a.out, &ds).map_err(render)?;

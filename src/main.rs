@@ -403,8 +403,9 @@ pub struct DataArgs {
     pub seed: u64,
     /// Range of the optimal signal-to-noise ratio [default: 6..15 for bursts;
     /// for glitch, each class's own range after Gravity Spy (Blip 6.5-100,
-    /// Koi Fish 25-400, ...), drawn log-uniformly; a range given here is
-    /// drawn uniformly for every class].
+    /// Koi Fish 12-400, ...), drawn log-uniformly, and a real Koi Fish
+    /// fit's shape at its own SNR; a range given here is drawn uniformly
+    /// for every class].
     #[arg(long)]
     pub snr: Option<String>,
     /// glitch only: shift the noise's PSD away from the modelled one by a
@@ -467,7 +468,7 @@ pub struct ExperimentArgs {
     pub seed: u64,
     /// `explain`: the injections' optimal SNR range, e.g. 10..30, drawn
     /// uniformly for every class [default: each class's own range after
-    /// Gravity Spy (Blip 6.5-100, Koi Fish 25-400, ...), log-uniformly,
+    /// Gravity Spy (Blip 6.5-100, Koi Fish 12-400, ...), log-uniformly,
     /// from SNR 10 up].
     #[arg(long, value_name = "LO..HI")]
     pub snr: Option<String>,

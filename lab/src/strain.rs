@@ -8,7 +8,7 @@
 //! convention), inverse-FFT'd, so the noise is exactly stationary with
 //! one-sided PSD `S`. Glitches: the signals of `lab/models/glitch/synth.gw`
 //! (scene `glitch_strain`) with shape params drawn as for `gwml data glitch`
-//! ([`crate::synth::draw_shape`]), centred on their injection time (the
+//! ([`crate::synth::draw_signal_shape`]), centred on their injection time (the
 //! chirp's merger at it, [`CHIRP_TAIL`] s before the window's end), drawn
 //! over an [`INJECTION_WINDOW`] of 4 s — Scratchy glitches last up to 2.5 s
 //! and Scattered Light up to 4 s, as real ones do — and cut to it by a
@@ -20,7 +20,7 @@
 //! at least 2 s apart and 10 s from the ends, never in a gap.
 
 use crate::synth::ShapeSource;
-use crate::synth::{draw_shape, draw_snr, GLITCH_CLASSES};
+use crate::synth::{draw_signal_shape, draw_snr, GlitchSignals, GLITCH_CLASSES};
 use gwml_runtime::noise::colored_noise;
 use gwml_runtime::spectrum::Spectrum;
 use gwml_runtime::{Error, Model, Value};
@@ -250,6 +250,9 @@ fn inject<R: Rng>(
     let knobs = vec![("window".to_string(), format!("{INJECTION_WINDOW:?} s"))];
     let scene = model.scene_with(Some("glitch_strain"), gwml_compiler::Options { knobs, ..gwml_compiler::Options::default() })?;
     let mut run = scene.bind();
+    // The whitened scene, for the shape draws' checks (`draw_signal_shape`).
+    let signals = GlitchSignals::new()?;
+    let mut shape_run = signals.bind();
     let fs = series.sample_rate;
     let window = (INJECTION_WINDOW * fs) as usize;
     let df = fs / window as f64;
@@ -275,8 +278,9 @@ fn inject<R: Rng>(
         }
         let class = o.classes[rng.random_range(0..o.classes.len())];
         let generated = shape(class)?;
-        let mut params = if generated.is_some() { Vec::new() } else { draw_shape(rng, class).to_vec() };
-        let snr = draw_snr(rng, class, o.snr);
+        let drawn = draw_snr(rng, class, o.snr);
+        let mut params = if generated.is_some() { Vec::new() } else { draw_signal_shape(&mut shape_run, rng, class, drawn)? };
+        let snr = generated.as_ref().map_or(drawn, |g| g.snr_or(o.snr, drawn));
         // Glitches centred in their window; a chirp merges CHIRP_TAIL before its end.
         let centre = if class == 5 && generated.is_none() {
             let tc = INJECTION_WINDOW - CHIRP_TAIL;
@@ -293,7 +297,7 @@ fn inject<R: Rng>(
         }
         let h = match &generated {
             Some(w) => {
-                let h = coloured(w, &psd_row, fs, (&row_plans.0, &row_plans.1))?;
+                let h = coloured(&w.samples, &psd_row, fs, (&row_plans.0, &row_plans.1))?;
                 let mut padded = vec![0.0; window];
                 let at = (window - row) / 2;
                 padded[at..at + row].iter_mut().zip(h.iter().zip(&row_taper)).for_each(|(x, (v, w))| *x = v * w);

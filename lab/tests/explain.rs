@@ -20,8 +20,8 @@ fn each_family_is_told_apart_and_its_params_recovered() {
     let overlap = |o: &Outcome| o.verdict() == "Tomte" && GLITCH_CLASSES[o.injection.class] == "Blip" && f0(o) < 80.0;
     let right = outcomes.iter().filter(|o| o.right() || overlap(o)).count();
     let verdicts: Vec<(&str, &str, f64)> = outcomes.iter().map(|o| (GLITCH_CLASSES[o.injection.class], o.verdict(), f0(o))).collect();
-    // The campaign (README) wins Blip 94-98 %, Koi Fish 89-92 % (fewer
-    // at SNR 15-30), Whistle 94-100 %, Scratchy 100 %, Chirp 97-98 %,
+    // The campaign (README) wins Blip 94-98 %, Koi Fish 96-98 %,
+    // Whistle 94-100 %, Scratchy 100 %, Chirp 97-98 %,
     // Tomte 100 %, Scattered Light 95-99 %: ~26 of these 28 on average.
     assert!(right >= 23, "{right} of 28 explained by the injected family: {verdicts:?}");
     for (label, n, right, params) in summarise(&outcomes) {
@@ -222,31 +222,30 @@ fn loud_tomtes_are_fitted_on_their_own_ridge() {
     // A Tomte's Q, rise and decay trade along a ridge. From the two best
     // starts at the loudest tile's time, the Tomte fit of a loud Tomte
     // could end on its bounds (asym 1, Q 5) ten units of loss short of the
-    // truth's, and the blip fit or a Koi Fish's head took the window: on
-    // the campaign's seed 1, its 28th, 48th, 50th and 55th Tomtes (SNR 41,
-    // 47, 26 and 27). Starts a few ms either side of the tile, six of them
-    // refined, find the ridge. Those four, as the campaign draws them:
+    // truth's, and the blip fit or a Koi Fish's head took the window: four
+    // of the campaign's first 60 Tomtes (seed 1, SNR 26-47, as it drew
+    // them before the Koi Fish rule reordered the draws). Starts a few ms
+    // either side of the tile, six of them refined, find the ridge. Every
+    // Tomte above SNR 35 of the campaign's first 40 (seven, SNR 39-48):
     let tomte = GLITCH_CLASSES.iter().position(|c| *c == "Tomte").unwrap();
     let o = CampaignOptions { per_class: 100, classes: vec![tomte], snr: None, window: 2.0, seed: 1 };
     let band = (20.0, 2000.0);
     let explainer = Explainer::new(&ExplainOptions { sample_rate: SAMPLE_RATE, window: 2.0, band }).unwrap();
     let whitener = Whitener::new().unwrap();
-    let wanted = [27, 47, 49, 54];
     let (mut seen, mut verdicts) = (0, Vec::new());
     for stretch in 0.. {
         let (w, injections) = campaign_stretch(&o, tomte, stretch, &whitener, band).unwrap();
-        for injection in &injections {
-            if wanted.contains(&seen) {
+        for injection in injections.iter().take(40 - seen) {
+            if injection.snr > 35.0 {
                 let (_, _, e) = explain_at(&explainer, &w, injection.gps_time, band).unwrap();
                 verdicts.push((injection.snr, e.best().map_or("None", |f| f.family.label)));
             }
-            seen += 1;
         }
-        if seen > wanted[3] {
+        seen = (seen + injections.len()).min(40);
+        if seen == 40 {
             break;
         }
     }
-    assert_eq!(verdicts.len(), 4);
+    assert!(verdicts.len() >= 3, "{verdicts:?}");
     assert!(verdicts.iter().all(|v| v.1 == "Tomte"), "{verdicts:?}");
-    assert!(verdicts[0].0 > 40.0 && verdicts[1].0 > 45.0, "not the campaign's Tomtes: {verdicts:?}");
 }

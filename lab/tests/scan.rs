@@ -69,11 +69,12 @@ fn injected_glitches_are_found_within_50_ms() {
 fn quiet_whistles_are_found_by_excess_power() {
     // 256 s of Whistles alone at SNR 9.5-10.5, 10 a minute: their energy is
     // spread along a sweep, and its slow bottom is narrower than the rows of
-    // the Q 11.3 plane. Measured: 30 of 36 found (29 with excess power up to
+    // the Q 11.3 plane. Measured: 38 of 43 found; on the draws before the
+    // Koi Fish rule reordered them, 30 of 36 (29 with excess power up to
     // Q 22.6 over at most 1 s; 23 up to Q 11.3).
     let (hits, injected) = found_alone(3, (9.5, 10.5));
-    assert_eq!(injected, 36);
-    assert!(hits >= 27, "{hits} of {injected} found");
+    assert_eq!(injected, 43);
+    assert!(hits as f64 >= 0.75 * injected as f64, "{hits} of {injected} found");
 }
 
 #[test]

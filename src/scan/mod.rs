@@ -8,7 +8,7 @@ use crate::strain_input::StrainInput;
 use gwml_lab::generator::GeneratorShapes;
 use gwml_lab::parse_range;
 use gwml_lab::strain::{simulate_with, write_truth, NoiseCurve, StrainOptions};
-use gwml_lab::synth::{real_fits::RealShapes, GlitchClass};
+use gwml_lab::synth::{real_fits::RealShapes, GlitchClass, Shape};
 use gwml_strain::blocks::{self, deal, decode, encode, merge, plan_blocks, scan_blocks, Parts};
 use gwml_strain::classifier::{probability_column, Classifier, Manifest};
 use gwml_strain::gwosc::{self, WriteOptions};
@@ -71,9 +71,10 @@ pub struct StrainArgs {
     /// repeat for several generators (at most one per class).
     #[arg(long, value_name = "GEN.json")]
     pub generator: Vec<PathBuf>,
-    /// Half the Blips and Tomtes take the shape of a real O3 glitch's fit
-    /// instead of their formula, as in `gwml data glitch` (their truth rows
-    /// have no shape params).
+    /// Half the Blips, Koi Fish and Tomtes take the shape of a real O3
+    /// glitch's fit instead of their formula, as in `gwml data glitch` (a
+    /// Koi Fish at its fitted SNR unless --snr fixes a range; their truth
+    /// rows have no shape params).
     #[arg(long)]
     pub real_fits: bool,
 }
@@ -119,7 +120,7 @@ pub fn data_strain(a: StrainArgs) -> Result<(), String> {
     let mut real = RealShapes::new(a.seed.wrapping_add(0x5eed));
     let (series, injections) = simulate_with(&options, &mut |class| {
         Ok(match shapes.shape(class)? {
-            Some(s) => Some(s),
+            Some(s) => Some(Shape::from(s)),
             None if a.real_fits => real.draw(class),
             None => None,
         })

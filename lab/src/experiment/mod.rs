@@ -301,7 +301,8 @@ struct TestSets {
 }
 
 /// Names of the test sets, in [`TestSets::all`] order.
-const TEST_SET_NAMES: [&str; 4] = ["standard", "low SNR (5–12)", "shifted PSD (knee 60 Hz)", "Blips and Tomtes from held-out real fits"];
+const TEST_SET_NAMES: [&str; 4] =
+    ["standard", "low SNR (5–12)", "shifted PSD (knee 60 Hz)", "Blips, Koi Fish and Tomtes from held-out real fits"];
 
 impl TestSets {
     fn all(&self) -> [&Dataset; 4] {

@@ -9,7 +9,7 @@
 //! a misestimated PSD and carries residual lines and weak background
 //! transients ([`NoiseExtras`]).
 
-use super::population::{draw_shape, draw_snr, NoiseExtras, CHIRP};
+use super::population::{draw_shape, draw_snr, NoiseExtras, CHIRP, KOI_FISH};
 use gwml_runtime::dataset::{Array, Dataset};
 use gwml_runtime::{Error, Value};
 use rand::{Rng, SeedableRng};
@@ -117,6 +117,61 @@ fn signal_and_norm(run: &mut gwml_runtime::Run, class: usize, settings: &[(&str,
     Ok((w, norm))
 }
 
+/// What makes a drawn Koi Fish one: a body that carries most of the
+/// whitened energy (20 Hz–2 kHz) and a head that can be seen. Gravity
+/// Spy's Koi Fish are blip-like bodies with a low-frequency head, peaking
+/// at 110–160 Hz (median peak frequencies of O3's classes, Glanz et al.
+/// 2024): the loudest tiles are the body's. Drawn freely, the population's
+/// heads (0.5–4 times the body before whitening, longer, at 15–45 Hz) held
+/// most of the whitened energy in 56 % of Koi Fish, Tomtes with a faint
+/// blip; and a head at 15–20 Hz, below most of the band, often held under
+/// 1 %, a Blip. Neither a classifier nor a fit can name those Koi Fish.
+pub const KOI_FISH_BODY_SHARE: f64 = 0.5;
+/// The head's least whitened SNR: a Q tile of normalised energy ~12, half
+/// the top of Gravity Spy's colour scale (25.5). Below SNR ~8 the head's
+/// share is held at [`KOI_FISH_MAX_HEAD_SHARE`] instead.
+pub const KOI_FISH_HEAD_SNR: f64 = 5.0;
+/// The most a head is asked to carry at a low SNR (what the body's least
+/// share leaves room for).
+pub const KOI_FISH_MAX_HEAD_SHARE: f64 = 0.4;
+
+/// [`draw_shape`] for a signal of optimal SNR `snr`, with a Koi Fish
+/// redrawn until its body carries at least [`KOI_FISH_BODY_SHARE`] of its
+/// whitened energy and its head [`KOI_FISH_HEAD_SNR`] (`run`: a run of the
+/// [`GlitchSignals`] scene).
+pub fn draw_signal_shape<R: Rng>(
+    run: &mut gwml_runtime::Run,
+    rng: &mut R,
+    class: usize,
+    snr: f64,
+) -> Result<Vec<(&'static str, f64)>, Error> {
+    if class != KOI_FISH {
+        return Ok(draw_shape(rng, class));
+    }
+    let head_share = (KOI_FISH_HEAD_SNR / snr).powi(2).min(KOI_FISH_MAX_HEAD_SHARE);
+    // Some 30 % of draws pass: a thousand failures mean a broken scene.
+    for _ in 0..1000 {
+        let settings = draw_shape(rng, class);
+        let (body, head) = koi_fish_shares(run, &settings)?;
+        if body >= KOI_FISH_BODY_SHARE && head >= head_share {
+            return Ok(settings);
+        }
+    }
+    Err(Error::Bind(format!("no Koi Fish in 1000 draws had the body and the head of one at SNR {snr}")))
+}
+
+/// The shares of a Koi Fish's whitened energy in its body (the glitch
+/// without its head) and in its head (the whole minus the body; whitening
+/// is linear).
+pub fn koi_fish_shares(run: &mut gwml_runtime::Run, settings: &[(&'static str, f64)]) -> Result<(f64, f64), Error> {
+    let (whole, norm) = signal_and_norm(run, KOI_FISH, settings)?;
+    let mut body = settings.to_vec();
+    body.iter_mut().filter(|p| p.0 == "head").for_each(|p| p.1 = 0.0);
+    let (body, _) = signal_and_norm(run, KOI_FISH, &body)?;
+    let energy = |w: &mut dyn Iterator<Item = f64>| w.map(|v| v * v).sum::<f64>() / (norm * norm);
+    Ok((energy(&mut body.iter().copied()), energy(&mut whole.iter().zip(&body).map(|(a, b)| a - b))))
+}
+
 /// The energy-weighted mean time of a clean signal, in seconds from the
 /// start of its row.
 pub fn signal_centre(w: &[f64]) -> f64 {
@@ -207,16 +262,46 @@ const BACKGROUND_AT: (f64, f64) = (0.1, 0.9);
 /// ([`super::population`]). A None row is noise, three in four of them
 /// with a weak (SNR 2–5) transient of a glitch class where signals are
 /// centred; one row in ten of the other classes carries such a transient
-/// anywhere in 0.1–0.9 s. Half the Blips and Tomtes take the shape of a
-/// real glitch's fit instead of their formula ([`super::real_fits`]).
+/// anywhere in 0.1–0.9 s. Half the Blips, Koi Fish and Tomtes take the
+/// shape of a real glitch's fit instead of their formula
+/// ([`super::real_fits`]; a Koi Fish's with its fitted SNR).
 pub fn glitches(o: &GlitchOptions) -> Result<Dataset, Error> {
     glitches_with(o, &mut |_| Ok(None))
 }
 
+/// A glitch shape from outside the library's formulas.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Shape {
+    /// The clean whitened glitch: 4096 samples at 4096 Hz, at any scale.
+    pub samples: Vec<f64>,
+    /// The optimal SNR it comes with (a real glitch's fitted loudness), or
+    /// `None` to draw the class's; a fixed SNR range given by the caller
+    /// overrides it.
+    pub snr: Option<f64>,
+}
+
+impl From<Vec<f64>> for Shape {
+    /// A shape without an SNR of its own.
+    fn from(samples: Vec<f64>) -> Shape {
+        Shape { samples, snr: None }
+    }
+}
+
+impl Shape {
+    /// The SNR to inject it at: its own unless `fixed` was asked for,
+    /// else `drawn`.
+    pub fn snr_or(&self, fixed: Option<(f64, f64)>, drawn: f64) -> f64 {
+        match (fixed, self.snr) {
+            (None, Some(own)) => own,
+            _ => drawn,
+        }
+    }
+}
+
 /// A source of glitch shapes other than the library's formulas (a fitted
-/// generator): `shape(class)` gives a clean whitened row of 4096 samples
-/// for that class, or `None` to draw the class's formula.
-pub type ShapeSource<'a> = dyn FnMut(usize) -> Result<Option<Vec<f64>>, Error> + 'a;
+/// generator, real glitches' fits): `shape(class)` gives a shape for that
+/// class, or `None` to draw the class's formula.
+pub type ShapeSource<'a> = dyn FnMut(usize) -> Result<Option<Shape>, Error> + 'a;
 
 /// [`glitches`], with the shapes of some classes from `shape`: each such
 /// row is its noise plus the given shape, its energy centre moved to the
@@ -260,10 +345,10 @@ pub fn glitches_with(o: &GlitchOptions, shape: &mut ShapeSource<'_>) -> Result<D
             let chance = if class == 0 { BACKGROUND_IN_NONE } else { BACKGROUND_ELSEWHERE };
             if rng.random_bool(chance) {
                 let weak = BACKGROUND[rng.random_range(0..BACKGROUND.len())];
-                let mut settings = draw_shape(&mut rng, weak);
+                let snr = rng.random_range(BACKGROUND_SNR.0..=BACKGROUND_SNR.1);
+                let mut settings = draw_signal_shape(&mut run, &mut rng, weak, snr)?;
                 let (lo, hi) = if class == 0 { o.position } else { BACKGROUND_AT };
                 let at = rng.random_range(lo..=hi);
-                let snr = rng.random_range(BACKGROUND_SNR.0..=BACKGROUND_SNR.1);
                 let (w, norm) = placed_signal(&mut run, weak, &mut settings, at)?;
                 row.iter_mut().zip(&w).for_each(|(r, v)| *r += snr * v / norm);
             }
@@ -277,23 +362,27 @@ pub fn glitches_with(o: &GlitchOptions, shape: &mut ShapeSource<'_>) -> Result<D
         }
         if class > 0 {
             let at = rng.random_range(o.position.0..=o.position.1);
-            let snr = draw_snr(&mut rng, class, o.snr);
+            let mut snr = draw_snr(&mut rng, class, o.snr);
             let given = match shape(class)? {
                 Some(s) => Some(s),
                 None => super::real_fits::draw(&mut rng, class),
             };
             let (w, norm) = match given {
                 Some(s) => {
-                    let norm = s.iter().map(|v| v * v).sum::<f64>().sqrt();
-                    if s.len() != SAMPLES || !(norm > 0.0 && norm.is_finite()) {
+                    let norm = s.samples.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    if s.samples.len() != SAMPLES || !(norm > 0.0 && norm.is_finite()) {
                         return Err(Error::Bind(format!(
                             "a generated {} is not {SAMPLES} finite samples with energy",
                             GLITCH_CLASSES[class]
                         )));
                     }
-                    (centred_at(&s, at), norm)
+                    snr = s.snr_or(o.snr, snr);
+                    (centred_at(&s.samples, at), norm)
                 }
-                None => placed_signal(&mut run, class, &mut draw_shape(&mut rng, class), at)?,
+                None => {
+                    let mut settings = draw_signal_shape(&mut run, &mut rng, class, snr)?;
+                    placed_signal(&mut run, class, &mut settings, at)?
+                }
             };
             row.iter_mut().zip(&w).for_each(|(r, v)| *r += snr * v / norm);
         }
@@ -326,7 +415,7 @@ fn centred_at(s: &[f64], at: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::population::{snr_range, KOI_FISH};
+    use crate::synth::population::{snr_range, BLIP as BLIP_CLASS, KOI_FISH};
 
     #[test]
     fn glitch_classes_are_named_in_any_case_with_underscores_for_spaces() {
@@ -343,7 +432,9 @@ mod tests {
         let mut spike = vec![0.0; SAMPLES];
         (spike[1000], spike[1001]) = (3.0, -4.0);
         let o = GlitchOptions { n: 1, seed: 9, snr: Some((10.0, 20.0)), class: Some(1), ideal_noise: true, ..Default::default() };
-        let ds = glitches_with(&o, &mut |c| Ok((c == 1).then(|| spike.clone()))).unwrap();
+        // Its own SNR (as a real Koi Fish fit brings) yields to the fixed range.
+        let shape = Shape { samples: spike.clone(), snr: Some(300.0) };
+        let ds = glitches_with(&o, &mut |c| Ok((c == 1).then(|| shape.clone()))).unwrap();
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(9);
         let noise: Vec<f64> = (0..SAMPLES).map(|_| StandardNormal.sample(&mut rng)).collect();
         let at: f64 = rng.random_range(0.3..=0.7);
@@ -362,8 +453,14 @@ mod tests {
             assert!((row[i] - (noise[i] + snr * s / 5.0)).abs() < 1e-12, "sample {i}");
         }
         assert_eq!(ds.arrays["label"].data, [1.0]);
+        // Without a fixed range the shape's own SNR is the injected one.
+        let own = GlitchOptions { snr: None, ..o.clone() };
+        let ds = glitches_with(&own, &mut |c| Ok((c == 1).then(|| shape.clone()))).unwrap();
+        let row = ds.arrays["x"].row(0);
+        let spike_at = |i: usize| row[i] - noise[i];
+        assert!((spike_at(1000 + shift) - 300.0 * 3.0 / 5.0).abs() < 1e-9, "{}", spike_at(1000 + shift));
         // A shape of the wrong length is an error, not a silent cut.
-        assert!(glitches_with(&o, &mut |_| Ok(Some(vec![1.0; 10]))).is_err());
+        assert!(glitches_with(&o, &mut |_| Ok(Some(vec![1.0; 10].into()))).is_err());
     }
 
     #[test]
@@ -409,6 +506,35 @@ mod tests {
             let (median_max, worst_max) = if long { (0.05, 0.15) } else { (0.002, 0.01) };
             assert!(median < median_max && worst < worst_max, "{name}: median miss {median} s, worst {worst} s");
         }
+    }
+
+    /// Every Koi Fish drawn has a body carrying at least
+    /// [`KOI_FISH_BODY_SHARE`] of the whitened energy and a head seen at
+    /// [`KOI_FISH_HEAD_SNR`] (or its share capped at low SNR), where the
+    /// free draws of the params often have neither (the check is not idle).
+    #[test]
+    fn koi_fish_have_a_loud_body_and_a_visible_head() {
+        let signals = GlitchSignals::new().unwrap();
+        let mut run = signals.bind();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(8);
+        let free: Vec<(f64, f64)> = (0..200).map(|_| koi_fish_shares(&mut run, &draw_shape(&mut rng, KOI_FISH)).unwrap()).collect();
+        let head_led = free.iter().filter(|s| s.0 < KOI_FISH_BODY_SHARE).count();
+        let faint = free.iter().filter(|s| s.1 < (KOI_FISH_HEAD_SNR / 20.0).powi(2)).count();
+        assert!((60..=170).contains(&head_led) && faint >= 4, "{head_led} head-led, {faint} faint at SNR 20 of 200: {free:?}");
+        for snr in [6.0, 12.0, 40.0, 300.0] {
+            for _ in 0..10 {
+                let settings = draw_signal_shape(&mut run, &mut rng, KOI_FISH, snr).unwrap();
+                let (body, head) = koi_fish_shares(&mut run, &settings).unwrap();
+                assert!(body >= KOI_FISH_BODY_SHARE, "SNR {snr}: body share {body}");
+                let seen = snr * head.sqrt();
+                assert!(seen >= KOI_FISH_HEAD_SNR - 1e-9 || head >= KOI_FISH_MAX_HEAD_SHARE, "SNR {snr}: head at SNR {seen}");
+                let head = settings.iter().find(|p| p.0 == "head").unwrap().1;
+                assert!((0.5..=4.0).contains(&head), "head {head}");
+            }
+        }
+        // Other classes are drawn as draw_shape draws them.
+        let (mut a, mut b) = (rand_pcg::Pcg64Mcg::seed_from_u64(9), rand_pcg::Pcg64Mcg::seed_from_u64(9));
+        assert_eq!(draw_signal_shape(&mut run, &mut a, BLIP_CLASS, 20.0).unwrap(), draw_shape(&mut b, BLIP_CLASS));
     }
 
     /// Every class takes the drawn phase: a phase of π negates the signal (a

@@ -4,8 +4,8 @@
 //! at 4096 Hz of eight classes ([`GLITCH_CLASSES`]) drawn from the
 //! population of `population.rs` (shapes, loudness and positions after
 //! Gravity Spy's numbers; noise with the flaws of whitened real strain);
-//! half the Blips and Tomtes take the shapes of real glitches' fits
-//! (`real_fits.rs`).
+//! half the Blips, Koi Fish and Tomtes take the shapes of real glitches'
+//! fits (`real_fits.rs`).
 //!
 //! [`bursts`]: sine-Gaussian bursts in white Gaussian noise (label 1) against
 //! noise alone (label 0), the smallest detection problem a 1-D CNN should
@@ -20,8 +20,8 @@ pub mod real_fits;
 
 pub(crate) use glitch::GLITCH_SCENE;
 pub use glitch::{
-    glitch_class, glitches, glitches_with, signal_centre, unit_signal, GlitchClass, GlitchOptions, GlitchSignals, ShapeSource, CENTRED,
-    GLITCH_CLASSES,
+    draw_signal_shape, glitch_class, glitches, glitches_with, koi_fish_shares, signal_centre, unit_signal, GlitchClass, GlitchOptions,
+    GlitchSignals, Shape, ShapeSource, CENTRED, GLITCH_CLASSES, KOI_FISH_BODY_SHARE, KOI_FISH_HEAD_SNR, KOI_FISH_MAX_HEAD_SHARE,
 };
 pub use population::{draw_shape, draw_snr, snr_range, NoiseExtras};
 

@@ -45,7 +45,8 @@ fn log_uniform<R: Rng>(rng: &mut R, lo: f64, hi: f64) -> f64 {
 /// 6.5–40 (16), Tomte 6.5–50 (18). Gravity Spy triggers start at an
 /// Omicron SNR of 7.5; the floor sits below it because a trigger's SNR
 /// scatters around the optimal one, and above the weak transients of the
-/// None class (SNR ≤ 5).
+/// None class (SNR ≤ 5). A Koi Fish with a real fit's shape keeps the
+/// fit's SNR within this range (`real_fits.rs`).
 pub fn snr_range(class: usize) -> (f64, f64) {
     match class {
         BLIP => (6.5, 100.0),
@@ -83,7 +84,9 @@ pub fn draw_snr<R: Rng>(rng: &mut R, class: usize, fixed: Option<(f64, f64)>) ->
 /// - Koi Fish: a broadband burst (f0 90–220 Hz, Q 1–2.5) with a head at
 ///   15–45 Hz (Q 2–6, 0.5–4 times the amplitude before whitening, 5–40 ms
 ///   before) decaying 1–4 times slower than it rises: the fish's head and
-///   long low-frequency tail.
+///   long low-frequency tail. Draws whose head outshines the body once
+///   whitened, or cannot be seen, are redrawn
+///   ([`super::glitch::KOI_FISH_BODY_SHARE`], `draw_signal_shape`).
 /// - Whistle: the sweep's turning frequency 450–1400 Hz; the ends
 ///   150–700 Hz above it (a V, 70 %) or below (an inverted V); in 40 % a
 ///   quartic term making a W; half-width 0.08–0.3 s; every draw stays in
