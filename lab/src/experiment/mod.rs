@@ -666,7 +666,7 @@ fn write_results(
          (eight classes drawn uniformly: {}); macro averages over the seven \
          classes other than None. Training sets are prefixes of one draw (seed {TRAIN_SEED}); validation seed {VAL_SEED}, \
          test seed {TEST_SEED}, low-SNR test seed {LOW_SNR_SEED}, shifted-PSD test seed {SHIFTED_PSD_SEED}, held-out-fits test seed \
-         {HELD_OUT_FITS_SEED} (every Blip and Tomte there from the real fits that training never draws). Each learner is \
+         {HELD_OUT_FITS_SEED} (every Blip, Koi Fish and Tomte there from the real fits that training never draws). Each learner is \
          trained from {} seeds (initial weights and batch order) per size: tables give mean ± sd over them; per-class \
          tables, confusion matrices and learned values are the first seed's.\n",
         o.threads,
