@@ -169,7 +169,7 @@ def own_snr(a):
     rows, truth, snrs = [], [], []
     for label in REAL_CLASSES:
         for k, snr in enumerate(real_fit_snrs(label)):
-            clean = centred(band_limited(realfit(rng, t, label, fit=k)), rng.uniform(0.4, 0.6))
+            clean = clean_row(functools.partial(realfit, label=label, fit=k), rng, t)
             rows.append(clean / np.linalg.norm(clean) * snr + rng.standard_normal(N))
             truth.append(label.replace("_", " "))
             snrs.append(snr)

@@ -170,8 +170,9 @@ pub fn koi_fish_shares(run: &mut gwml_runtime::Run, settings: &[(&'static str, f
     let mut body = settings.to_vec();
     body.iter_mut().filter(|p| p.0 == "head").for_each(|p| p.1 = 0.0);
     let (body, _) = signal_and_norm(run, KOI_FISH, &body)?;
-    let energy = |w: &mut dyn Iterator<Item = f64>| w.map(|v| v * v).sum::<f64>() / (norm * norm);
-    Ok((energy(&mut body.iter().copied()), energy(&mut whole.iter().zip(&body).map(|(a, b)| a - b))))
+    let head: Vec<f64> = whole.iter().zip(&body).map(|(a, b)| a - b).collect();
+    let share = |w: &[f64]| w.iter().map(|v| v * v).sum::<f64>() / (norm * norm);
+    Ok((share(&body), share(&head)))
 }
 
 /// The energy-weighted mean time of a clean signal, in seconds from the
