@@ -45,7 +45,24 @@ const HALVES: [f64; 7] = [0.06, 0.08, 0.11, 0.15, 0.2, 0.27, 0.35];
 /// sweep is slowest, or on an arm — below the vertex of an inverted V, the
 /// whitened arms being louder at lower frequencies — so the vertex is
 /// looked for from the tile's frequency to a span past it.
-const REACH: f64 = 0.08;
+const REACH: f64 = 0.12;
+
+/// Half-widths (s) and the span step (Hz) of the coarse scan that ranks
+/// the places (an origin's frequency at one of its vertex times) a whistle
+/// is looked for from.
+const COARSE_HALVES: [f64; 3] = [0.08, 0.15, 0.27];
+const COARSE_SPAN_STEP: f64 = 100.0;
+/// How many of the best places, beyond the loudest tile's, the full grid
+/// of spans and widths searches.
+const PLACES_SEARCHED: usize = 2;
+
+/// Where a whistle's vertex is looked for from a tile at `f` Hz, below
+/// and above `f`, for each span: a V's vertex lies at or below the tile,
+/// an inverted V's at or above it.
+fn whistle_reach(f: f64) -> impl Fn(f64) -> (f64, f64) {
+    let margin = REACH * f;
+    move |span: f64| (margin + span.max(0.0), margin + (-span).max(0.0))
+}
 
 /// How many of the best whistle shapes are searched again at vertex times
 /// [`RETIME`] s away.
@@ -208,21 +225,50 @@ fn fast_length(n: usize) -> usize {
 /// matches, each once, as `(dt, [f_turn, span, half, wiggle])`.
 pub fn whistle_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -> Vec<Start> {
     let mut search = WhistleSearch::new(fs);
-    // From the loudest tile, and from the loudest pixel a whistle could be when the tile is lower.
-    let origins = [(seed.vertex, seed.dt, seed.frequency)].into_iter().chain(seed.upper.map(|u| (u.vertex, u.dt, u.frequency)));
+    // Every origin at each of its vertex times and its own time, ranked by
+    // a coarse scan. The loudest tile at its best vertex time and its own
+    // time are searched on the full grid (where the search looked before
+    // it had other origins), then the best of the rest.
+    let first = *SPANS.start() as f64 * SPAN_STEP;
+    let count = SPANS.count();
     let mut found: Vec<(f64, Start)> = Vec::new();
-    for (vertex, tile_dt, f) in origins {
-        let margin = REACH * f;
-        // A V's vertex lies at or below the tile, an inverted V's at or above it.
-        let reach = |span: f64| (margin + span.max(0.0), margin + (-span).max(0.0));
-        for dt in vertex.into_iter().chain([tile_dt]) {
-            for half in HALVES {
-                let first = *SPANS.start() as f64 * SPAN_STEP;
-                let count = SPANS.count();
-                for (i, (f_turn, snr)) in search.scan_spans(d, (dt, f, half, 0.0), (first, SPAN_STEP, count), reach).into_iter().enumerate()
-                {
-                    found.push((snr, (dt, vec![f_turn, first + i as f64 * SPAN_STEP, half, 0.0])));
+    // (primary, coarse match, dt, frequency)
+    let mut places: Vec<(bool, f64, f64, f64)> = Vec::new();
+    for (k, origin) in seed.whistle.iter().enumerate() {
+        let f = origin.frequency;
+        for (j, dt) in origin.vertices.iter().copied().chain([origin.dt]).enumerate() {
+            let mut best = f64::NEG_INFINITY;
+            for half in COARSE_HALVES {
+                let coarse = (first, COARSE_SPAN_STEP, count.div_ceil(2));
+                for (i, (f_turn, snr)) in search.scan_spans(d, (dt, f, half, 0.0), coarse, whistle_reach(f)).into_iter().enumerate() {
+                    found.push((snr, (dt, vec![f_turn, first + i as f64 * COARSE_SPAN_STEP, half, 0.0])));
+                    best = best.max(snr);
                 }
+            }
+            let primary = k == 0 && (j == 0 || j == origin.vertices.len());
+            places.push((primary, best, dt, f));
+        }
+    }
+    places.sort_by(|a, b| b.0.cmp(&a.0).then(b.1.total_cmp(&a.1)));
+    let mut searched: Vec<(f64, f64)> = Vec::new();
+    let mut extra = 0;
+    for (primary, _, dt, f) in places {
+        // A vertex time within a few ms of one searched, at a frequency near its own, is that place again.
+        if searched.iter().any(|(t, g)| (t - dt).abs() < 0.003 && (g - f).abs() < REACH * g) {
+            continue;
+        }
+        if !primary {
+            if extra == PLACES_SEARCHED {
+                break;
+            }
+            extra += 1;
+        }
+        searched.push((dt, f));
+        for half in HALVES {
+            for (i, (f_turn, snr)) in
+                search.scan_spans(d, (dt, f, half, 0.0), (first, SPAN_STEP, count), whistle_reach(f)).into_iter().enumerate()
+            {
+                found.push((snr, (dt, vec![f_turn, first + i as f64 * SPAN_STEP, half, 0.0])));
             }
         }
     }
@@ -480,6 +526,7 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
 #[cfg(test)]
 mod tests {
     use super::super::test_support::{at_snr_in_white_noise, scratchy};
+    use super::super::WhistleOrigin;
     use super::*;
 
     /// A unit-amplitude whistle (std::glitch's formula) at `t0` s.
@@ -503,12 +550,47 @@ mod tests {
         let (n, fs) = (8192, 4096.0);
         let truth = (800.0, -300.0, 0.18, 300.0);
         let d = at_snr_in_white_noise(&whistle(n, fs, 1.0 + 0.01, truth), 15.0, 7);
-        let seed = Seed { dt: 0.03, frequency: 730.0, q: 20.0, arches: None, vertex: Some(0.01), high: None, upper: None };
+        let seed = Seed {
+            dt: 0.03,
+            frequency: 730.0,
+            q: 20.0,
+            arches: None,
+            high: None,
+            whistle: vec![WhistleOrigin { dt: 0.03, frequency: 730.0, vertices: vec![0.01] }],
+        };
         let starts = whistle_starts_from_data(&d, fs, &seed, 3);
         let (dt, x) = &starts[0];
         assert!((dt - 0.01).abs() < 0.003, "vertex time {dt} s: {starts:?}");
         assert!((x[0] - truth.0).abs() < 10.0, "vertex {} Hz: {starts:?}", x[0]);
         assert!(x[1] < -150.0 && (150.0..=600.0).contains(&x[3]), "span {} Hz, wiggle {} Hz: {starts:?}", x[1], x[3]);
+    }
+
+    #[test]
+    fn a_quiet_whistle_is_found_when_a_louder_burst_in_another_octave_has_the_loudest_tile() {
+        // An inverted V from 1250 Hz at SNR 14 and, 0.1 s after its vertex,
+        // a 500 Hz burst (Q 20) at SNR 9 whose compact tile outshines the
+        // sweep's (passes at noise seeds 11-14): the whistle is looked for from its own octave's loudest
+        // pixel, at one of its phase symmetry's best vertex times.
+        let (n, fs) = (8192, 4096.0);
+        let truth = (1250.0, -400.0, 0.25, 0.0);
+        let sweep = whistle(n, fs, 1.0, truth);
+        let burst: Vec<f64> = (0..n)
+            .map(|k| {
+                let tau = k as f64 / fs - 1.1;
+                let width = 20.0 / (TAU * 500.0);
+                (-(tau / width).powi(2)).exp() * (TAU * 500.0 * tau).cos()
+            })
+            .collect();
+        let unit = |h: &[f64]| h.iter().map(|v| v / h.iter().map(|v| v * v).sum::<f64>().sqrt()).collect::<Vec<f64>>();
+        let h: Vec<f64> = unit(&sweep).iter().zip(unit(&burst)).map(|(w, b)| 14.0 * w + 9.0 * b).collect();
+        let d = at_snr_in_white_noise(&h, h.iter().map(|v| v * v).sum::<f64>().sqrt(), 11);
+        let win = super::super::Window { gps_centre: 1.0, gps_start: 0.0, offset: 0, sample_rate: fs, d, psd: vec![1.0; n / 2 + 1] };
+        let seed = super::super::seed_of(&win, fs, (20.0, 2000.0)).expect("a seed");
+        assert!((seed.frequency - 500.0).abs() < 100.0, "the loudest tile is the burst's: {} Hz", seed.frequency);
+        let starts = whistle_starts_from_data(&win.d, fs, &seed, 3);
+        let (dt, x) = &starts[0];
+        assert!(dt.abs() < 0.002, "vertex time {dt} s: {starts:?}");
+        assert!((x[0] - truth.0).abs() < 5.0, "vertex {} Hz: {starts:?}", x[0]);
     }
 
     #[test]
@@ -565,7 +647,7 @@ mod tests {
         let truth = (187.3, 17.6, 1.4, 0.12);
         let h = scratchy(n, fs, 1.0 + 0.07, truth);
         let d = at_snr_in_white_noise(&h, 12.0, 5);
-        let seed = Seed { dt: 0.0, frequency: 160.0, q: 11.0, arches: None, vertex: None, high: None, upper: None };
+        let seed = Seed { dt: 0.0, frequency: 160.0, q: 11.0, arches: None, high: None, whistle: Vec::new() };
         let starts = scratchy_starts_from_data(&d, fs, &seed, 3);
         let (dt, x) = &starts[0];
         assert!((x[0] - truth.0).abs() < 0.3, "carrier {} Hz: {starts:?}", x[0]);

@@ -715,7 +715,7 @@ mod tests {
     /// merger at 34 Hz, has starts near the merger for masses around its own.
     #[test]
     fn chirp_starts_reach_the_merger_after_an_early_tile() {
-        let seed = Seed { dt: -0.25, frequency: 34.0, q: 5.7, arches: None, vertex: None, high: None, upper: None };
+        let seed = Seed { dt: -0.25, frequency: 34.0, q: 5.7, arches: None, high: None, whistle: Vec::new() };
         let starts = chirp_starts(&seed);
         let near = starts.iter().filter(|(dt, x)| dt.abs() < 0.05 && (18.0..24.0).contains(&x[0])).count();
         assert!(near >= 2, "{} starts within 50 ms of the merger at 18-24 Msun", near);

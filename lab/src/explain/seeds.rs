@@ -23,7 +23,7 @@ use realfft::num_complex::Complex64;
 use realfft::RealFftPlanner;
 
 /// Where a trigger's fits start.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Seed {
     /// The loudest tile's time from the window's centre (s).
     pub dt: f64,
@@ -33,33 +33,42 @@ pub struct Seed {
     pub q: f64,
     /// A periodic energy envelope around the tile's frequency, if any.
     pub arches: Option<Arches>,
-    /// The time (s from the window's centre) about which the data around
-    /// the tile's frequency are most nearly symmetric in phase: a
-    /// whistle's vertex, to a sample or two.
-    pub vertex: Option<f64>,
     /// The loudest pixel at or above [`HIGH_BAND`] Hz in the search span
     /// when the loudest tile is below it: `(dt, frequency)`. A Koi Fish's
     /// head, loud at 15-50 Hz, can outshine its blip; this finds the blip.
     pub high: Option<(f64, f64)>,
-    /// Where a whistle is looked for when the loudest tile is below
-    /// [`WHISTLE_BAND`] (a low noise excursion or glitch can outshine it).
-    pub upper: Option<Upper>,
+    /// Where a whistle is looked for: the loudest tile, then the loudest
+    /// pixel of each band of [`WHISTLE_OCTAVES`] the tile is not in (a
+    /// quiet whistle's sweep spreads over time, so a noise excursion
+    /// elsewhere can outshine it).
+    pub whistle: Vec<WhistleOrigin>,
 }
 
 /// The lowest frequency (Hz) a whistle's vertex is looked for at: the
 /// whistle scene's lower bound on `f_turn`.
 pub const WHISTLE_BAND: f64 = 150.0;
 
-/// The loudest pixel at or above [`WHISTLE_BAND`] in the search span, and
-/// the vertex time the data's phase symmetry gives at its frequency.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Upper {
-    /// Its time from the window's centre (s).
+/// The bands (Hz) a whistle is looked for in beside the loudest tile's:
+/// octaves from [`WHISTLE_BAND`], the last up to the window's band.
+pub const WHISTLE_OCTAVES: [(f64, f64); 4] = [(WHISTLE_BAND, 300.0), (300.0, 600.0), (600.0, 1200.0), (1200.0, f64::INFINITY)];
+
+/// How many vertex times each [`WhistleOrigin`] offers: at SNR 10-15 the
+/// whistle's vertex is the best of the phase symmetry's peaks about half
+/// the time, and among its best three nearly always (100 whistles of the
+/// explain campaign, seed 1).
+pub const VERTEX_CANDIDATES: usize = 3;
+
+/// A place a whistle is looked for from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WhistleOrigin {
+    /// The tile's or pixel's time from the window's centre (s).
     pub dt: f64,
     /// Its frequency (Hz).
     pub frequency: f64,
-    /// As [`Seed::vertex`], around this frequency.
-    pub vertex: Option<f64>,
+    /// The times (s from the window's centre) about which the data around
+    /// `frequency` are most nearly symmetric in phase, best first: a
+    /// whistle's vertex, to a sample or two, is among them ([`vertices`]).
+    pub vertices: Vec<f64>,
 }
 
 /// Where a Koi Fish's blip is looked for when the loudest tile is lower (Hz).
@@ -95,31 +104,32 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
         .map_err(|e| e.to_string())?;
     let nf = image.frequencies.len();
     let (frequency, dt) = (image.peak.frequency, image.peak.time - win.gps_centre);
-    // The loudest pixel at or above `band` Hz within 0.25 s of the centre: `(dt, f)`.
-    let loudest_above = |band: f64| {
+    // The loudest pixel in `lo..hi` Hz within 0.25 s of the centre: `(dt, f)`.
+    let loudest_above = |lo: f64, hi: f64| {
         let search = |t: f64| (t - win.gps_centre).abs() <= 0.25;
         let pixels = image.times.iter().enumerate().filter(|(_, t)| search(**t)).flat_map(|(i, t)| {
             let column = &image.values[i * nf..(i + 1) * nf];
-            image.frequencies.iter().zip(column).filter(move |(f, _)| **f >= band).map(move |(f, e)| (*t, *f, *e))
+            image.frequencies.iter().zip(column).filter(move |(f, _)| (lo..hi).contains(*f)).map(move |(f, e)| (*t, *f, *e))
         });
         let best = pixels.fold(None, |best: Option<(f64, f64, f64)>, p| if best.is_none_or(|b| p.2 > b.2) { Some(p) } else { best });
         best.map(|(t, f, _)| (t - win.gps_centre, f))
     };
-    let high = (frequency < HIGH_BAND).then(|| loudest_above(HIGH_BAND)).flatten();
-    let upper = (frequency < WHISTLE_BAND).then(|| loudest_above(WHISTLE_BAND)).flatten().map(|(dt, frequency)| Upper {
+    let high = (frequency < HIGH_BAND).then(|| loudest_above(HIGH_BAND, f64::INFINITY)).flatten();
+    let origin = |dt: f64, frequency: f64| WhistleOrigin {
         dt,
         frequency,
-        vertex: vertex(&win.d, sample_rate, frequency),
-    });
-    Ok(Seed {
-        dt,
-        frequency,
-        q: image.q,
-        arches: arches(&win.d, sample_rate, frequency),
-        vertex: vertex(&win.d, sample_rate, frequency),
-        high,
-        upper,
-    })
+        vertices: vertices(&win.d, sample_rate, frequency, VERTEX_CANDIDATES).into_iter().map(|v| v.0).collect(),
+    };
+    let whistle = std::iter::once(origin(dt, frequency))
+        .chain(
+            WHISTLE_OCTAVES
+                .iter()
+                .filter(|(lo, hi)| !(*lo..*hi).contains(&frequency) && *lo < band.1)
+                .filter_map(|(lo, hi)| loudest_above(*lo, *hi))
+                .map(|(dt, f)| origin(dt, f)),
+        )
+        .collect();
+    Ok(Seed { dt, frequency, q: image.q, arches: arches(&win.d, sample_rate, frequency), high, whistle })
 }
 
 /// The analytic signal of `x` band-passed to `lo..hi` Hz, and the
@@ -152,17 +162,19 @@ fn analytic(x: &[f64], fs: f64, lo: f64, hi: f64) -> Option<(Vec<Complex64>, f64
     Some((z, line))
 }
 
-/// The time (s from the window's centre), within 0.25 s of it (the span
-/// the loudest tile is looked for in), about which the band 0.6–1.8 `f0`
-/// is most nearly symmetric in phase. A
+/// The `count` times (s from the window's centre, best first, at least
+/// 10 ms apart), within 0.25 s of it (the span the loudest tile is looked
+/// for in), about which the band 0.6–1.8 `f0` is most nearly symmetric in
+/// phase: the best local maxima of the symmetry score, each with its
+/// ratio to the score's median over the span. A
 /// whistle's frequency is even about its vertex `t0` (every term of
 /// `f(t)` is a power of `(t − t0)²`), so its phase is odd about it and
 /// `z(t0 + τ) z(t0 − τ)` of its analytic signal `z` keeps one phase for
 /// every τ: the sum of those products over τ (weighted by a Gaussian of
 /// 0.15 s) is largest at the vertex, whatever the sweep's span, width or
 /// wiggle. The tile's time is 10–200 ms off; a template needs ~1 ms.
-fn vertex(x: &[f64], fs: f64, f0: f64) -> Option<f64> {
-    let (z, _) = analytic(x, fs, 0.6 * f0, (1.8 * f0).min(0.49 * fs))?;
+pub fn vertices(x: &[f64], fs: f64, f0: f64, count: usize) -> Vec<(f64, f64)> {
+    let Some((z, _)) = analytic(x, fs, 0.6 * f0, (1.8 * f0).min(0.49 * fs)) else { return Vec::new() };
     let n = z.len();
     let (reach, search) = ((0.3 * fs) as usize, (0.25 * fs) as i64);
     let centre = (n / 2) as i64;
@@ -171,9 +183,21 @@ fn vertex(x: &[f64], fs: f64, f0: f64) -> Option<f64> {
         let reach = reach.min(j as usize).min(n - 1 - j as usize);
         (1..=reach).map(|k| weights[k] * z[j as usize + k] * z[j as usize - k]).sum::<Complex64>().norm()
     };
-    let candidates = (centre - search).max(1)..=(centre + search).min(n as i64 - 2);
-    let best = candidates.map(|j| (j, score(j))).fold((0, f64::NEG_INFINITY), |b, c| if c.1 > b.1 { c } else { b });
-    best.1.is_finite().then(|| (best.0 - (n / 2) as i64) as f64 / fs)
+    let candidates: Vec<(i64, f64)> = ((centre - search).max(1)..=(centre + search).min(n as i64 - 2)).map(|j| (j, score(j))).collect();
+    let mut sorted: Vec<f64> = candidates.iter().map(|c| c.1).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let mut peaks: Vec<(i64, f64)> =
+        candidates.windows(3).filter(|w| w[1].1 >= w[0].1 && w[1].1 >= w[2].1 && w[1].1.is_finite()).map(|w| w[1]).collect();
+    peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let mut kept: Vec<(i64, f64)> = Vec::new();
+    let apart = (0.01 * fs) as i64;
+    for p in peaks {
+        if kept.len() < count && kept.iter().all(|k| (k.0 - p.0).abs() >= apart) {
+            kept.push(p);
+        }
+    }
+    kept.into_iter().map(|(j, s)| ((j - centre) as f64 / fs, s / median)).collect()
 }
 
 /// The energy envelope of `x` band-passed around `f0`, and its arches.
@@ -250,14 +274,14 @@ mod tests {
         ] {
             let x = whistle_in_noise(t0, f_turn, span, wiggle, half, 15.0, seed);
             // The loudest tile's frequency is within a few percent of the vertex's.
-            let found = vertex(&x, 4096.0, 1.03 * f_turn).expect("a vertex");
+            let found = vertices(&x, 4096.0, 1.03 * f_turn, 1).first().expect("a vertex").0;
             assert!((found - t0).abs() < 1e-3, "vertex at {t0} s found at {found} s");
         }
     }
 
     #[test]
     fn noise_alone_has_a_vertex_anywhere_but_no_panic() {
-        let found = vertex(&noise(8192, 9), 4096.0, 700.0).expect("a time");
+        let found = vertices(&noise(8192, 9), 4096.0, 700.0, 1).first().expect("a time").0;
         assert!(found.abs() <= 0.25 + 1e-9, "{found}");
     }
 }
