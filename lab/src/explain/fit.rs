@@ -59,8 +59,10 @@ fn loss_and_grad(run: &mut Run, free: &[FreeParam], x: &[f64]) -> Result<(f64, V
 
 /// Where a family's fit begins.
 pub(super) enum Begin<'a> {
-    /// From its starts for a seed, and `more` (built on another family's fit).
-    Search(&'a Seed, Vec<Start>),
+    /// From its starts for a seed and `more` (built on another family's
+    /// fit), ranked together, and the best of `besides` (built on another's,
+    /// ranked apart).
+    Search { seed: &'a Seed, more: Vec<Start>, besides: Vec<Start> },
     /// From a fit's params (`dt`, `snr`, `phi`, shape): the family's
     /// neighbouring modes are tried, and the best is kept.
     Neighbours(Vec<f64>),
@@ -107,7 +109,7 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
     let better = |best: Minimum, m: Minimum| if m.loss < best.loss { m } else { best };
     // The fit's mode, and the other modes known (from the neighbours).
     let (mut best, rivals) = match begin {
-        Begin::Search(seed, more) => {
+        Begin::Search { seed, more, besides } => {
             // 1. Starting points, each with the amplitude and phase that best match the data.
             let mut starts = (family.starts)(seed);
             if let Some(from_data) = family.data_starts {
@@ -115,9 +117,10 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
             }
             starts.extend(more);
             let ranked = rank_starts(&mut run, &free, starts, &inside, &mut evaluations)?;
+            let apart = rank_starts(&mut run, &free, besides, &inside, &mut evaluations)?;
             // 2. L-BFGS from the best starts.
             let mut best: Option<Minimum> = None;
-            for (_, x0) in ranked.iter().take(family.refined) {
+            for (_, x0) in ranked.iter().take(family.refined).chain(apart.first()) {
                 let m = refine(&mut run, x0, &mut evaluations)?;
                 best = Some(match best {
                     Some(b) => better(b, m),

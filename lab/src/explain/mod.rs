@@ -9,13 +9,14 @@
 //!    Q tile ([`Seed`]: time, frequency, Q), shapes found in the data by
 //!    searches cheaper than the fit (`heterodyne.rs`, `fringes.rs`; a
 //!    whistle's and a scratchy glitch's starts come from these alone) and,
-//!    for a Koi Fish, from the Tomte fit's head (`residual.rs`), taking
-//!    each start's amplitude
+//!    for a Koi Fish, from the Tomte fit's head and the blip fit's blip
+//!    (`residual.rs`), taking each start's amplitude
 //!    and phase from the data's projection on the template's two
 //!    quadratures (two forward evaluations, no optimiser);
-//! 2. refines the best starts ([`STARTS_REFINED`], a Tomte's six) with L-BFGS inside the
-//!    bounds (the phase is periodic and left unbounded; a whistle's first
-//!    steps scaled by each param's curvature);
+//! 2. refines the best starts ([`STARTS_REFINED`], a Tomte's six; for a
+//!    Koi Fish also the best start from the blip fit, ranked apart) with
+//!    L-BFGS inside the bounds (the phase is periodic and left unbounded;
+//!    a whistle's first steps scaled by each param's curvature);
 //! 3. takes the Fisher matrix at the best fit (the loss's Hessian,
 //!    `runtime::fit::fit_run`, or where that is not positive definite the
 //!    model's `JᵀJ` if the two agree: `fit.rs`), its 1σ errors, χ²/dof and
@@ -89,6 +90,10 @@ pub struct Family {
     /// More starting points built on the fit of another family (its
     /// scene's name), which is fitted first.
     after: Option<(&'static str, FitStarts)>,
+    /// Starting points built on another family's fit, ranked apart: their
+    /// best is refined besides the family's best starts (one more L-BFGS
+    /// run), so they cannot crowd those out.
+    besides: Option<(&'static str, FitStarts)>,
     /// Other modes of the likelihood near a fit, given its `dt` and shape
     /// params: refined after the first fit, and kept if they fit better.
     neighbours: Option<fn(&Start) -> Vec<Start>>,
@@ -125,6 +130,7 @@ pub const FAMILIES: [Family; 7] = [
         starts: blip_starts,
         data_starts: None,
         after: None,
+        besides: None,
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
@@ -137,6 +143,7 @@ pub const FAMILIES: [Family; 7] = [
         starts: koi_fish_starts,
         data_starts: None,
         after: Some(("tomte", koi_fish_from_head)),
+        besides: Some(("blip", koi_fish_from_blip)),
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
@@ -149,6 +156,7 @@ pub const FAMILIES: [Family; 7] = [
         starts: no_starts,
         data_starts: Some(whistle_data_starts),
         after: None,
+        besides: None,
         neighbours: Some(whistle_neighbours),
         scaled_steps: true,
         refined: STARTS_REFINED,
@@ -163,6 +171,7 @@ pub const FAMILIES: [Family; 7] = [
         starts: no_starts,
         data_starts: Some(scratchy_data_starts),
         after: None,
+        besides: None,
         neighbours: Some(scratchy_neighbours),
         scaled_steps: false,
         refined: STARTS_REFINED,
@@ -177,6 +186,7 @@ pub const FAMILIES: [Family; 7] = [
         starts: tomte_starts,
         data_starts: None,
         after: None,
+        besides: None,
         neighbours: None,
         scaled_steps: false,
         refined: TOMTE_STARTS_REFINED,
@@ -190,6 +200,7 @@ pub const FAMILIES: [Family; 7] = [
         starts: scattered_light_starts,
         data_starts: Some(scattered_light_data_starts),
         after: None,
+        besides: None,
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
@@ -203,6 +214,7 @@ pub const FAMILIES: [Family; 7] = [
         starts: chirp_starts,
         data_starts: None,
         after: None,
+        besides: None,
         neighbours: None,
         scaled_steps: false,
         refined: STARTS_REFINED,
@@ -595,14 +607,19 @@ impl Explainer {
         let mut fits: Vec<FamilyFit> = Vec::with_capacity(self.scenes.len());
         // Families that build on another's fit go after the others.
         for building in [false, true] {
-            for (family, scene, factor) in self.scenes.iter().filter(|(f, ..)| f.after.is_some() == building) {
+            let builds = |f: &Family| f.after.is_some() || f.besides.is_some();
+            for (family, scene, factor) in self.scenes.iter().filter(|(f, ..)| builds(f) == building) {
                 let clock = Instant::now();
-                let after = family.after.and_then(|(base, starts)| {
-                    let fit = fits.iter().find(|f| f.family.scene == base)?;
-                    Some(starts(fit, d, self.sample_rate))
-                });
+                let built = |on: Option<(&'static str, FitStarts)>| {
+                    on.and_then(|(base, starts)| {
+                        let fit = fits.iter().find(|f| f.family.scene == base)?;
+                        Some(starts(fit, d, self.sample_rate))
+                    })
+                    .unwrap_or_default()
+                };
                 let window = (at(*factor), self.sample_rate / *factor as f64);
-                let mut fit = fit_family(family, scene, window, Begin::Search(seed, after.unwrap_or_default()))?;
+                let begin = Begin::Search { seed, more: built(family.after), besides: built(family.besides) };
+                let mut fit = fit_family(family, scene, window, begin)?;
                 fit.seconds = clock.elapsed().as_secs_f64();
                 fits.push(fit);
             }
