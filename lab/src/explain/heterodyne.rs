@@ -581,7 +581,10 @@ mod tests {
                 (-(tau / width).powi(2)).exp() * (TAU * 500.0 * tau).cos()
             })
             .collect();
-        let unit = |h: &[f64]| h.iter().map(|v| v / h.iter().map(|v| v * v).sum::<f64>().sqrt()).collect::<Vec<f64>>();
+        let unit = |h: &[f64]| {
+            let norm = h.iter().map(|v| v * v).sum::<f64>().sqrt();
+            h.iter().map(|v| v / norm).collect::<Vec<f64>>()
+        };
         let h: Vec<f64> = unit(&sweep).iter().zip(unit(&burst)).map(|(w, b)| 14.0 * w + 9.0 * b).collect();
         let d = at_snr_in_white_noise(&h, h.iter().map(|v| v * v).sum::<f64>().sqrt(), 11);
         let win = super::super::Window { gps_centre: 1.0, gps_start: 0.0, offset: 0, sample_rate: fs, d, psd: vec![1.0; n / 2 + 1] };

@@ -67,7 +67,10 @@ pub fn koi_fish_from_head(head: &FamilyFit, d: &[f64], fs: f64) -> Vec<Start> {
     }
     let residual: Vec<f64> = d.iter().zip(&head.model).map(|(d, m)| d - m).collect();
     let blips = loudest_bursts(&residual, fs, (dt_head + LEAD.0, dt_head + LEAD.1), (BLIP_F0, &BLIP_Q), BLIPS);
-    blips.into_iter().flat_map(|(dt, f0, q)| HEADS.map(|ratio| (dt, vec![f0, q, f_head, ratio, dt - dt_head, q_head, tail, 0.0]))).collect()
+    blips
+        .into_iter()
+        .flat_map(|(_, dt, f0, q)| HEADS.map(|ratio| (dt, vec![f0, q, f_head, ratio, dt - dt_head, q_head, tail, 0.0])))
+        .collect()
 }
 
 /// Koi Fish starts from the blip fit `blip` to the whitened window `d` (at
@@ -86,7 +89,7 @@ pub fn koi_fish_from_blip(blip: &FamilyFit, d: &[f64], fs: f64) -> Vec<Start> {
     }
     let drift = value("drift").unwrap_or(0.0);
     let residual: Vec<f64> = d.iter().zip(&blip.model).map(|(d, m)| d - m).collect();
-    let heads = loudest_bursts_matched(&residual, fs, (dt - LEAD.1, dt - LEAD.0), (HEAD_F0, &HEAD_Q), HEADS_KEPT);
+    let heads = loudest_bursts(&residual, fs, (dt - LEAD.1, dt - LEAD.0), (HEAD_F0, &HEAD_Q), HEADS_KEPT);
     heads
         .into_iter()
         .filter(|h| h.0 >= HEAD_GATE)
@@ -99,19 +102,9 @@ pub fn koi_fish_from_blip(blip: &FamilyFit, d: &[f64], fs: f64) -> Vec<Start> {
 /// The `keep` best sine-Gaussian matches to `x` (at `fs` Hz) centred
 /// within `times` (s from the window's centre), over frequencies
 /// `f0s.0..f0s.1` (12 % apart) and Qs `qs`, at most one per frequency and
-/// time: `(dt, f0, q)`, best first.
-fn loudest_bursts(x: &[f64], fs: f64, times: (f64, f64), ((lo, hi), qs): ((f64, f64), &[f64]), keep: usize) -> Vec<(f64, f64, f64)> {
-    loudest_bursts_matched(x, fs, times, ((lo, hi), qs), keep).into_iter().map(|(_, dt, f, q)| (dt, f, q)).collect()
-}
-
-/// As [`loudest_bursts`], each with its match (an SNR in white noise) first.
-fn loudest_bursts_matched(
-    x: &[f64],
-    fs: f64,
-    times: (f64, f64),
-    ((lo, hi), qs): ((f64, f64), &[f64]),
-    keep: usize,
-) -> Vec<(f64, f64, f64, f64)> {
+/// time: `(match, dt, f0, q)` with the match an SNR in white noise, best
+/// first.
+fn loudest_bursts(x: &[f64], fs: f64, times: (f64, f64), ((lo, hi), qs): ((f64, f64), &[f64]), keep: usize) -> Vec<(f64, f64, f64, f64)> {
     let centre = 0.5 * x.len() as f64 / fs;
     let first = ((centre + times.0) * fs).round().max(0.0) as usize;
     let last = (((centre + times.1) * fs).round() as usize).min(x.len().saturating_sub(1));
@@ -189,7 +182,7 @@ mod tests {
         let x = at_snr_in_white_noise(&sine_gaussian(n, fs, t_blip, f0, q, 0.3), 15.0, 11);
         let blips = loudest_bursts(&x, fs, (0.05 + LEAD.0, 0.05 + LEAD.1), (BLIP_F0, &BLIP_Q), 3);
         assert_eq!(blips.len(), 3);
-        let (dt, f, _) = blips[0];
+        let (_, dt, f, _) = blips[0];
         assert!((dt - 0.073).abs() < 0.002, "time {dt}: {blips:?}");
         assert!((f / f0 - 1.0).abs() < 0.15, "frequency {f}: {blips:?}");
     }
@@ -203,7 +196,7 @@ mod tests {
         let (t_head, f_head, q) = (1.0 + 0.05 - 0.031, 28.0, 3.0);
         let x = at_snr_in_white_noise(&sine_gaussian(n, fs, t_head, f_head, q, 1.1), 10.0, 5);
         let times = (0.05 - LEAD.1, 0.05 - LEAD.0);
-        let heads = loudest_bursts_matched(&x, fs, times, (HEAD_F0, &HEAD_Q), HEADS_KEPT);
+        let heads = loudest_bursts(&x, fs, times, (HEAD_F0, &HEAD_Q), HEADS_KEPT);
         assert_eq!(heads.len(), HEADS_KEPT);
         let (matched, dt, f, _) = heads[0];
         assert!((dt - 0.019).abs() < 0.004, "time {dt}: {heads:?}");
@@ -214,7 +207,7 @@ mod tests {
         nothing[0] = 1.0;
         for seed in 1..=5 {
             let noise = at_snr_in_white_noise(&nothing, 0.0, seed);
-            let best = loudest_bursts_matched(&noise, fs, times, (HEAD_F0, &HEAD_Q), 1)[0].0;
+            let best = loudest_bursts(&noise, fs, times, (HEAD_F0, &HEAD_Q), 1)[0].0;
             assert!(best < HEAD_GATE, "noise seed {seed}: a head matched at {best}");
         }
     }

@@ -105,7 +105,7 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
     let nf = image.frequencies.len();
     let (frequency, dt) = (image.peak.frequency, image.peak.time - win.gps_centre);
     // The loudest pixel in `lo..hi` Hz within 0.25 s of the centre: `(dt, f)`.
-    let loudest_above = |lo: f64, hi: f64| {
+    let loudest_in = |lo: f64, hi: f64| {
         let search = |t: f64| (t - win.gps_centre).abs() <= 0.25;
         let pixels = image.times.iter().enumerate().filter(|(_, t)| search(**t)).flat_map(|(i, t)| {
             let column = &image.values[i * nf..(i + 1) * nf];
@@ -114,18 +114,15 @@ pub fn seed_of(win: &Window, sample_rate: f64, band: (f64, f64)) -> Result<Seed,
         let best = pixels.fold(None, |best: Option<(f64, f64, f64)>, p| if best.is_none_or(|b| p.2 > b.2) { Some(p) } else { best });
         best.map(|(t, f, _)| (t - win.gps_centre, f))
     };
-    let high = (frequency < HIGH_BAND).then(|| loudest_above(HIGH_BAND, f64::INFINITY)).flatten();
-    let origin = |dt: f64, frequency: f64| WhistleOrigin {
-        dt,
-        frequency,
-        vertices: vertices(&win.d, sample_rate, frequency, VERTEX_CANDIDATES).into_iter().map(|v| v.0).collect(),
-    };
+    let high = (frequency < HIGH_BAND).then(|| loudest_in(HIGH_BAND, f64::INFINITY)).flatten();
+    let origin =
+        |dt: f64, frequency: f64| WhistleOrigin { dt, frequency, vertices: vertices(&win.d, sample_rate, frequency, VERTEX_CANDIDATES) };
     let whistle = std::iter::once(origin(dt, frequency))
         .chain(
             WHISTLE_OCTAVES
                 .iter()
                 .filter(|(lo, hi)| !(*lo..*hi).contains(&frequency) && *lo < band.1)
-                .filter_map(|(lo, hi)| loudest_above(*lo, *hi))
+                .filter_map(|(lo, hi)| loudest_in(*lo, *hi))
                 .map(|(dt, f)| origin(dt, f)),
         )
         .collect();
@@ -165,15 +162,14 @@ fn analytic(x: &[f64], fs: f64, lo: f64, hi: f64) -> Option<(Vec<Complex64>, f64
 /// The `count` times (s from the window's centre, best first, at least
 /// 10 ms apart), within 0.25 s of it (the span the loudest tile is looked
 /// for in), about which the band 0.6–1.8 `f0` is most nearly symmetric in
-/// phase: the best local maxima of the symmetry score, each with its
-/// ratio to the score's median over the span. A
+/// phase: the best local maxima of the symmetry score. A
 /// whistle's frequency is even about its vertex `t0` (every term of
 /// `f(t)` is a power of `(t − t0)²`), so its phase is odd about it and
 /// `z(t0 + τ) z(t0 − τ)` of its analytic signal `z` keeps one phase for
 /// every τ: the sum of those products over τ (weighted by a Gaussian of
 /// 0.15 s) is largest at the vertex, whatever the sweep's span, width or
 /// wiggle. The tile's time is 10–200 ms off; a template needs ~1 ms.
-pub fn vertices(x: &[f64], fs: f64, f0: f64, count: usize) -> Vec<(f64, f64)> {
+pub fn vertices(x: &[f64], fs: f64, f0: f64, count: usize) -> Vec<f64> {
     let Some((z, _)) = analytic(x, fs, 0.6 * f0, (1.8 * f0).min(0.49 * fs)) else { return Vec::new() };
     let n = z.len();
     let (reach, search) = ((0.3 * fs) as usize, (0.25 * fs) as i64);
@@ -184,9 +180,6 @@ pub fn vertices(x: &[f64], fs: f64, f0: f64, count: usize) -> Vec<(f64, f64)> {
         (1..=reach).map(|k| weights[k] * z[j as usize + k] * z[j as usize - k]).sum::<Complex64>().norm()
     };
     let candidates: Vec<(i64, f64)> = ((centre - search).max(1)..=(centre + search).min(n as i64 - 2)).map(|j| (j, score(j))).collect();
-    let mut sorted: Vec<f64> = candidates.iter().map(|c| c.1).collect();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
     let mut peaks: Vec<(i64, f64)> =
         candidates.windows(3).filter(|w| w[1].1 >= w[0].1 && w[1].1 >= w[2].1 && w[1].1.is_finite()).map(|w| w[1]).collect();
     peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -197,7 +190,7 @@ pub fn vertices(x: &[f64], fs: f64, f0: f64, count: usize) -> Vec<(f64, f64)> {
             kept.push(p);
         }
     }
-    kept.into_iter().map(|(j, s)| ((j - centre) as f64 / fs, s / median)).collect()
+    kept.into_iter().map(|(j, _)| (j - centre) as f64 / fs).collect()
 }
 
 /// The energy envelope of `x` band-passed around `f0`, and its arches.
@@ -274,14 +267,14 @@ mod tests {
         ] {
             let x = whistle_in_noise(t0, f_turn, span, wiggle, half, 15.0, seed);
             // The loudest tile's frequency is within a few percent of the vertex's.
-            let found = vertices(&x, 4096.0, 1.03 * f_turn, 1).first().expect("a vertex").0;
+            let found = *vertices(&x, 4096.0, 1.03 * f_turn, 1).first().expect("a vertex");
             assert!((found - t0).abs() < 1e-3, "vertex at {t0} s found at {found} s");
         }
     }
 
     #[test]
     fn noise_alone_has_a_vertex_anywhere_but_no_panic() {
-        let found = vertices(&noise(8192, 9), 4096.0, 700.0, 1).first().expect("a time").0;
+        let found = *vertices(&noise(8192, 9), 4096.0, 700.0, 1).first().expect("a time");
         assert!(found.abs() <= 0.25 + 1e-9, "{found}");
     }
 }
