@@ -13,6 +13,11 @@
 //! `model` and `weights` are paths relative to the manifest; `band_hz` (the
 //! whitening band of the training data; default 20–2000 Hz), `scene`,
 //! `input` and `output` are optional.
+//!
+//! The shipped weights carry the class shares of a scan's windows (noise
+//! 4 %) folded into their output bias by `scripts/fold_prior.py`, so every
+//! user of them gets posteriors for that prior; their metadata
+//! (`deployment_prior`) states it.
 
 use crate::Error;
 use gwml_compiler::Options;
