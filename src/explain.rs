@@ -153,7 +153,7 @@ pub fn campaign(out: &Path, per_class: usize, seed: u64, snr: Option<(f64, f64)>
         .map(|family| {
             let mut s: Vec<f64> = outcomes
                 .iter()
-                .flat_map(|o| o.explanation.fits.iter())
+                .flat_map(|o| o.explanation.fits.iter().chain(&o.explanation.worse_variants))
                 .filter(|f| f.family.scene == family.scene)
                 .map(|f| f.seconds)
                 .collect();

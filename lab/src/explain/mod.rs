@@ -82,6 +82,16 @@ pub struct Family {
     pub scene: &'static str,
     /// The Gravity Spy class it stands for (as `gwml scan` labels triggers).
     pub label: &'static str,
+    /// The family this scene is a variant of (a blip with an echo is a
+    /// blip): an explanation keeps the better-fitting variant only, and
+    /// the cause is that family's. A variant is fitted only where the fit
+    /// it builds on (`after`) leaves something for it (gives starts), and
+    /// the best fit so far is of one of `contests`.
+    pub variant_of: Option<&'static str>,
+    /// The families a variant can take the verdict from: it is fitted only
+    /// where one of them leads (an echo does not turn a whistle's window
+    /// into a blip's, and the fit costs a quarter of a trigger's time).
+    contests: &'static [&'static str],
     /// Starting points for a seed: `dt` and the shape params (the scene's
     /// free params after `dt`, `snr` and `phi`).
     starts: fn(&Seed) -> Vec<Start>,
@@ -115,6 +125,14 @@ pub struct Family {
     pub top: f64,
 }
 
+impl Family {
+    /// The family this scene explains the data as (its own scene, or the
+    /// one it is a variant of): what the ranking and the cause table name.
+    pub fn base(&self) -> &'static str {
+        self.variant_of.unwrap_or(self.scene)
+    }
+}
+
 /// Starts a Tomte fit refines. A Tomte's rise, decay and Q trade along a
 /// ridge, and from the two best-matching starts L-BFGS often climbed to
 /// the bounds (asym 1, Q 5) ten units of loss short of the truth's, which
@@ -123,10 +141,12 @@ pub struct Family {
 const TOMTE_STARTS_REFINED: usize = 6;
 
 /// Every candidate, in the order of `explain.gw`.
-pub const FAMILIES: [Family; 7] = [
+pub const FAMILIES: [Family; 8] = [
     Family {
         scene: "blip",
         label: "Blip",
+        variant_of: None,
+        contests: &[],
         starts: blip_starts,
         data_starts: None,
         after: None,
@@ -140,6 +160,8 @@ pub const FAMILIES: [Family; 7] = [
     Family {
         scene: "koi_fish",
         label: "Koi Fish",
+        variant_of: None,
+        contests: &[],
         starts: koi_fish_starts,
         data_starts: None,
         after: Some(("tomte", koi_fish_from_head)),
@@ -151,8 +173,25 @@ pub const FAMILIES: [Family; 7] = [
         top: f64::INFINITY,
     },
     Family {
+        scene: "blip_echo",
+        label: "Blip",
+        variant_of: Some("blip"),
+        contests: &["blip", "koi_fish", "tomte"],
+        starts: blip_echo_starts,
+        data_starts: None,
+        after: Some(("blip", blip_echo_from_blip)),
+        besides: None,
+        neighbours: None,
+        scaled_steps: false,
+        refined: STARTS_REFINED,
+        profiled: &["f0", "q"],
+        top: f64::INFINITY,
+    },
+    Family {
         scene: "whistle",
         label: "Whistle",
+        variant_of: None,
+        contests: &[],
         starts: no_starts,
         data_starts: Some(whistle_data_starts),
         after: None,
@@ -168,6 +207,8 @@ pub const FAMILIES: [Family; 7] = [
     Family {
         scene: "scratchy",
         label: "Scratchy",
+        variant_of: None,
+        contests: &[],
         starts: no_starts,
         data_starts: Some(scratchy_data_starts),
         after: None,
@@ -183,6 +224,8 @@ pub const FAMILIES: [Family; 7] = [
     Family {
         scene: "tomte",
         label: "Tomte",
+        variant_of: None,
+        contests: &[],
         starts: tomte_starts,
         data_starts: None,
         after: None,
@@ -197,6 +240,8 @@ pub const FAMILIES: [Family; 7] = [
     Family {
         scene: "scattered_light",
         label: "Scattered Light",
+        variant_of: None,
+        contests: &[],
         starts: scattered_light_starts,
         data_starts: Some(scattered_light_data_starts),
         after: None,
@@ -211,6 +256,8 @@ pub const FAMILIES: [Family; 7] = [
     Family {
         scene: "chirp",
         label: "Chirp",
+        variant_of: None,
+        contests: &[],
         starts: chirp_starts,
         data_starts: None,
         after: None,
@@ -239,6 +286,12 @@ fn scaled<const N: usize>(v: f64, factors: [f64; N]) -> [f64; N] {
 // Symmetric, without drift.
 fn blip_starts(s: &Seed) -> Vec<Start> {
     grid(s.dt, &[&scaled(s.frequency, [0.8, 1.0, 1.25]), &[2.5, 4.5, s.q.clamp(1.5, 12.0)], &[1.0], &[0.0]])
+}
+
+// The blip's starts with an echo at its frequency, 15 ms later (the fit
+// of the blip finds better ones: `blip_echo_from_blip`).
+fn blip_echo_starts(s: &Seed) -> Vec<Start> {
+    blip_starts(s).into_iter().map(|(dt, x)| (dt, [x.as_slice(), &[0.3, 0.0, 0.015, 1.0]].concat())).collect()
 }
 
 // Seeded from the blip when the loudest tile is above [`HIGH_BAND`];
@@ -514,8 +567,11 @@ impl FamilyFit {
 /// Every family's fit to one trigger, best first.
 #[derive(Clone, Debug)]
 pub struct Explanation {
-    /// The fits, by decreasing evidence.
+    /// The fits, by decreasing evidence: one per family, its best variant.
     pub fits: Vec<FamilyFit>,
+    /// The variants of a family that fitted worse than its best (a blip
+    /// with an echo where the blip alone explains more).
+    pub worse_variants: Vec<FamilyFit>,
     /// The loss of noise alone, ½ Σ d²: its `ln Z` is minus this.
     pub noise_loss: f64,
     /// Samples fitted.
@@ -543,9 +599,9 @@ impl Explanation {
         fit.ln_z() - self.ln_z_noise()
     }
 
-    /// Scene evaluations of all the fits.
+    /// Scene evaluations of all the fits (the worse variants' included).
     pub fn evaluations(&self) -> usize {
-        self.fits.iter().map(|f| f.evaluations).sum()
+        self.fits.iter().chain(&self.worse_variants).map(|f| f.evaluations).sum()
     }
 }
 
@@ -617,14 +673,27 @@ impl Explainer {
                     })
                     .unwrap_or_default()
                 };
+                let more = built(family.after);
+                let leader = fits.iter().max_by(|a, b| a.ln_z().total_cmp(&b.ln_z())).map(|f| f.family.base());
+                if family.variant_of.is_some() && (more.is_empty() || !leader.is_some_and(|l| family.contests.contains(&l))) {
+                    continue;
+                }
                 let window = (at(*factor), self.sample_rate / *factor as f64);
-                let begin = Begin::Search { seed, more: built(family.after), besides: built(family.besides) };
+                let begin = Begin::Search { seed, more, besides: built(family.besides) };
                 let mut fit = fit_family(family, scene, window, begin)?;
                 fit.seconds = clock.elapsed().as_secs_f64();
                 fits.push(fit);
             }
         }
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
+        // One fit per family: its better-fitting variant.
+        let mut kept: Vec<&str> = Vec::new();
+        let (fits, worse_variants): (Vec<FamilyFit>, Vec<FamilyFit>) = fits.into_iter().partition(|f| {
+            let fresh = !kept.contains(&f.family.base());
+            kept.push(f.family.base());
+            fresh
+        });
+        let mut fits = fits;
         // The neighbouring modes and profiled σ of the fits that compete
         // for the verdict (only there do their params matter enough to pay for them).
         let best = fits.first().map_or(f64::NEG_INFINITY, FamilyFit::ln_z);
@@ -645,41 +714,13 @@ impl Explainer {
         }
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
         let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();
-        Ok(Explanation { fits, noise_loss, samples: d.len() })
+        Ok(Explanation { fits, worse_variants, noise_loss, samples: d.len() })
     }
 }
 
 /// What the start searches' tests share.
 #[cfg(test)]
-mod test_support {
-    use rand::SeedableRng;
-    use rand_distr::{Distribution, StandardNormal};
-    use std::f64::consts::TAU;
-
-    /// std::glitch's scratchy shape at `t0` s: carrier, rate, duration, wobble.
-    pub fn scratchy(n: usize, fs: f64, t0: f64, (f0, rate, duration, wobble): (f64, f64, f64, f64)) -> Vec<f64> {
-        (0..n)
-            .map(|k| {
-                let tau = k as f64 / fs - t0;
-                let u = 2.0 * tau / duration;
-                let arches = 0.5 * (1.0 - (TAU * rate * tau).cos());
-                (-u * u).exp() * arches * (TAU * f0 * tau + wobble * f0 / rate * (TAU * rate * tau).sin() + 0.4).cos()
-            })
-            .collect()
-    }
-
-    /// `h` scaled to SNR `snr` in unit white noise drawn from `seed`.
-    pub fn at_snr_in_white_noise(h: &[f64], snr: f64, seed: u64) -> Vec<f64> {
-        let scale = snr / h.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-        h.iter()
-            .map(|v| {
-                let noise: f64 = StandardNormal.sample(&mut rng);
-                v * scale + noise
-            })
-            .collect()
-    }
-}
+mod test_support;
 
 #[cfg(test)]
 mod tests {

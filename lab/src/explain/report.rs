@@ -66,7 +66,7 @@ pub fn explanation_text(e: &Explanation, win: &Window, seed: &Seed) -> String {
         Some(best) => {
             let _ = writeln!(s, "best: {} ({})", best.family.scene, best.family.label);
             let _ = writeln!(s, "  {}", best.params.iter().map(|p| param_text(p, win.gps_centre)).collect::<Vec<_>>().join(", "));
-            if let Some(c) = cause_of(best.family.scene) {
+            if let Some(c) = cause_of(best.family.base()) {
                 let _ = writeln!(s, "likely cause: {}\n  sources: {}", c.cause, c.sources);
             }
         }
@@ -117,7 +117,7 @@ pub fn explanation_json(e: &Explanation, win: &Window, seed: &Seed) -> Json {
         "noise": {"ln_evidence": e.ln_z_noise(), "chi2_per_dof": 2.0 * e.noise_loss / e.samples as f64},
         "best": best.map(|b| b.family.scene),
         "label": best.map_or("None", |b| b.family.label),
-        "cause": best.and_then(|b| cause_of(b.family.scene)).map(|c| json!({"cause": c.cause, "sources": c.sources})),
+        "cause": best.and_then(|b| cause_of(b.family.base())).map(|c| json!({"cause": c.cause, "sources": c.sources})),
         "evaluations": e.evaluations(),
         "fits": e.fits.iter().map(|f| fit_json(e, f, win.gps_centre)).collect::<Vec<_>>(),
     })
