@@ -140,37 +140,36 @@ impl Family {
 /// the rate each refinement is cheap.
 const TOMTE_STARTS_REFINED: usize = 6;
 
+/// What a family is unless its entry in [`FAMILIES`] says otherwise: its
+/// own family, seeded starts only, fitted at the full rate with
+/// [`STARTS_REFINED`] refinements.
+const PLAIN: Family = Family {
+    scene: "",
+    label: "",
+    variant_of: None,
+    contests: &[],
+    starts: no_starts,
+    data_starts: None,
+    after: None,
+    besides: None,
+    neighbours: None,
+    scaled_steps: false,
+    refined: STARTS_REFINED,
+    profiled: &[],
+    top: f64::INFINITY,
+};
+
 /// Every candidate, in the order of `explain.gw`.
 pub const FAMILIES: [Family; 8] = [
-    Family {
-        scene: "blip",
-        label: "Blip",
-        variant_of: None,
-        contests: &[],
-        starts: blip_starts,
-        data_starts: None,
-        after: None,
-        besides: None,
-        neighbours: None,
-        scaled_steps: false,
-        refined: STARTS_REFINED,
-        profiled: &["f0", "q"],
-        top: f64::INFINITY,
-    },
+    Family { scene: "blip", label: "Blip", starts: blip_starts, profiled: &["f0", "q"], ..PLAIN },
     Family {
         scene: "koi_fish",
         label: "Koi Fish",
-        variant_of: None,
-        contests: &[],
         starts: koi_fish_starts,
-        data_starts: None,
         after: Some(("tomte", koi_fish_from_head)),
         besides: Some(("blip", koi_fish_from_blip)),
-        neighbours: None,
-        scaled_steps: false,
-        refined: STARTS_REFINED,
         profiled: &["f0", "q"],
-        top: f64::INFINITY,
+        ..PLAIN
     },
     Family {
         scene: "blip_echo",
@@ -178,96 +177,43 @@ pub const FAMILIES: [Family; 8] = [
         variant_of: Some("blip"),
         contests: &["blip", "koi_fish", "tomte"],
         starts: blip_echo_starts,
-        data_starts: None,
         after: Some(("blip", blip_echo_from_blip)),
-        besides: None,
-        neighbours: None,
-        scaled_steps: false,
-        refined: STARTS_REFINED,
         profiled: &["f0", "q"],
-        top: f64::INFINITY,
+        ..PLAIN
     },
     Family {
         scene: "whistle",
         label: "Whistle",
-        variant_of: None,
-        contests: &[],
-        starts: no_starts,
         data_starts: Some(whistle_data_starts),
-        after: None,
-        besides: None,
         neighbours: Some(whistle_neighbours),
         scaled_steps: true,
-        refined: STARTS_REFINED,
         profiled: &["f_turn"],
-        top: f64::INFINITY,
+        ..PLAIN
     },
     // A carrier of at most 600 Hz swung by at most 40 %, and the arches'
     // sidelines a few rates (≤ 40 Hz) beyond: below 1000 Hz.
     Family {
         scene: "scratchy",
         label: "Scratchy",
-        variant_of: None,
-        contests: &[],
-        starts: no_starts,
         data_starts: Some(scratchy_data_starts),
-        after: None,
-        besides: None,
         neighbours: Some(scratchy_neighbours),
-        scaled_steps: false,
-        refined: STARTS_REFINED,
-        profiled: &[],
         top: 1000.0,
+        ..PLAIN
     },
     // f0 ≤ 60 Hz at Q ≥ 1.2: the envelope's spectrum has a 1/e half-width
     // of √2 f0 / Q ≤ 71 Hz, so at 400 Hz it is down by e^-23.
-    Family {
-        scene: "tomte",
-        label: "Tomte",
-        variant_of: None,
-        contests: &[],
-        starts: tomte_starts,
-        data_starts: None,
-        after: None,
-        besides: None,
-        neighbours: None,
-        scaled_steps: false,
-        refined: TOMTE_STARTS_REFINED,
-        profiled: &[],
-        top: 400.0,
-    },
+    Family { scene: "tomte", label: "Tomte", starts: tomte_starts, refined: TOMTE_STARTS_REFINED, top: 400.0, ..PLAIN },
     // The third harmonic of fringes of at most 100 Hz.
     Family {
         scene: "scattered_light",
         label: "Scattered Light",
-        variant_of: None,
-        contests: &[],
         starts: scattered_light_starts,
         data_starts: Some(scattered_light_data_starts),
-        after: None,
-        besides: None,
-        neighbours: None,
-        scaled_steps: false,
-        refined: STARTS_REFINED,
-        profiled: &[],
         top: 400.0,
+        ..PLAIN
     },
     // The inspiral ends at its ISCO: 191 Hz for the lightest binary of the bounds.
-    Family {
-        scene: "chirp",
-        label: "Chirp",
-        variant_of: None,
-        contests: &[],
-        starts: chirp_starts,
-        data_starts: None,
-        after: None,
-        besides: None,
-        neighbours: None,
-        scaled_steps: false,
-        refined: STARTS_REFINED,
-        profiled: &[],
-        top: 400.0,
-    },
+    Family { scene: "chirp", label: "Chirp", starts: chirp_starts, top: 400.0, ..PLAIN },
 ];
 
 /// Every combination of one value per axis, each at time offset `dt`.

@@ -14,7 +14,6 @@
 //!   the two refinements from the starts that had found other Koi Fish;
 //!   their best is refined besides (`Family::besides`).
 //!
-//!
 //! A blip's echo is looked for the same way ([`blip_echo_from_blip`]): a
 //! second burst near the blip fit, at 0.5–1.8 times its frequency.
 //!
