@@ -158,7 +158,10 @@ pub fn campaign(out: &Path, per_class: usize, seed: u64, snr: Option<(f64, f64)>
                 .map(|f| f.seconds)
                 .collect();
             s.sort_by(f64::total_cmp);
-            format!("{} {:.3} s", family.scene, s.get(s.len() / 2).copied().unwrap_or(f64::NAN))
+            match s.get(s.len() / 2) {
+                Some(median) => format!("{} {median:.3} s", family.scene),
+                None => format!("{} not fitted", family.scene),
+            }
         })
         .collect();
     let mut md = format!(

@@ -41,6 +41,12 @@ fn each_family_is_told_apart_and_its_params_recovered() {
                 assert!(median < 0.1, "{label} {name}: median relative error {median}");
                 assert!(within + 1 >= with_sigma, "{label} {name}: {within} of {with_sigma} within 3σ");
             }
+            // The chirp's ISCO cut is smoothed over a bin, so its loss is
+            // smooth and every fit has Fisher errors (with the hard cut the
+            // fits stopped on a bin edge: 70 of 100 had none, seed 1).
+            if label == "Chirp" && name == "mc" {
+                assert!(with_sigma >= right, "{label} {name}: {with_sigma} of {right} with a σ");
+            }
             if label == "Scratchy" && (name == "f0" || name == "rate") {
                 assert!(median < 0.02, "{label} {name}: median relative error {median}");
             }

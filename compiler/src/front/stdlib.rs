@@ -9,6 +9,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("constrained", include_str!("../../../stdlib/constrained.gw")),
     ("detector", include_str!("../../../stdlib/detector.gw")),
     ("glitch", include_str!("../../../stdlib/glitch.gw")),
+    ("imrphenom", include_str!("../../../stdlib/imrphenom.gw")),
     ("nn", include_str!("../../../stdlib/nn.gw")),
     ("psd", include_str!("../../../stdlib/psd.gw")),
     ("taylorf2", include_str!("../../../stdlib/taylorf2.gw")),

@@ -61,7 +61,8 @@ pub const CAUSES: [Cause; 8] = [
         cause: "astrophysical if real: a compact-binary coalescence sweeps up in frequency. Check for a coincident \
                 signal in the other detectors before calling it a glitch",
         sources: "Cutler & Flanagan 1994, Phys. Rev. D 49 2658 (the inspiral and its SNR); Buonanno et al. 2009, \
-                  Phys. Rev. D 80 084043 (TaylorF2)",
+                  Phys. Rev. D 80 084043 (TaylorF2); Ajith et al. 2008, Phys. Rev. D 77 104017 (IMRPhenomA: merger \
+                  and ringdown)",
     },
     Cause {
         family: "noise",
