@@ -89,8 +89,9 @@ pub struct Family {
     /// starts), and the best fit so far is of one of `contests` (if any).
     pub variant_of: Option<&'static str>,
     /// The families a variant can take the verdict from (empty: any): it
-    /// is fitted only where one of them leads (an echo does not turn a whistle's window
-    /// into a blip's, and the fit costs a quarter of a trigger's time).
+    /// is fitted only where one of them leads (an echo does not turn a
+    /// whistle's window into a blip's, and the fit costs a quarter of a
+    /// trigger's time).
     contests: &'static [&'static str],
     /// Starting points for a seed: `dt` and the shape params (the scene's
     /// free params after `dt`, `snr` and `phi`).
@@ -365,7 +366,7 @@ fn scratchy_neighbours((dt, shape): &Start) -> Vec<Start> {
 // scene runs at a quarter of the rate: 160 starts cost ~40 ms). On seed
 // 2's campaign this took Chirps from 78 to 89 % right.
 fn chirp_starts(s: &Seed) -> Vec<Start> {
-    let masses: Vec<f64> = (0..16).map(|k| 10.5 * 1.093f64.powi(k)).collect();
+    let masses = chirp_masses();
     let near_tile = [-0.01, 0.0, 0.01, 0.025, 0.05].iter().flat_map(|o| grid(s.dt + o, &[&masses, &[0.4, 0.8]]));
     // A light chirp's loudest tile can be its early inspiral, 0.1-0.3 s
     // before the merger (seed 1: all three light Chirps lost had it there):
@@ -384,8 +385,14 @@ fn chirp_starts(s: &Seed) -> Vec<Start> {
 // fit took a 17 Msun mode, SNR 10.7 of 18.6). The masses and ratios of
 // the chirp's grid.
 fn chirp_imr_starts(s: &Seed) -> Vec<Start> {
-    let masses: Vec<f64> = (0..16).map(|k| 10.5 * 1.093f64.powi(k)).collect();
+    let masses = chirp_masses();
     (-3..=3).flat_map(|k| grid(s.dt + 0.01 * k as f64, &[&masses, &[0.4, 0.8]])).filter(|(dt, _)| dt.abs() < 0.3).collect()
+}
+
+/// The chirp masses (M☉) chirp starts are tried at: 9 % steps over the
+/// scenes' bounds, 10.5-39.9.
+fn chirp_masses() -> Vec<f64> {
+    (0..16).map(|k| 10.5 * 1.093f64.powi(k)).collect()
 }
 
 /// Fractions of the leading-order time to merger from the tile at which
