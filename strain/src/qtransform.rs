@@ -484,6 +484,20 @@ mod tests {
         out
     }
 
+    /// Adds to `x` (sampled at `fs`) a sine-Gaussian `e^{−(t−t0)²/τ²} cos 2πf0(t−t0)`,
+    /// `τ = Q/(√2 π f0)`, scaled to `snr` in unit-variance white noise.
+    fn add_sine_gaussian(x: &mut [f64], fs: f64, (f0, q, t0): (f64, f64, f64), snr: f64) {
+        let tau = q / (std::f64::consts::SQRT_2 * PI * f0);
+        let h: Vec<f64> = (0..x.len())
+            .map(|j| {
+                let dt = j as f64 / fs - t0;
+                (-(dt / tau).powi(2)).exp() * (TAU * f0 * dt).cos()
+            })
+            .collect();
+        let norm = h.iter().map(|v| v * v).sum::<f64>().sqrt();
+        x.iter_mut().zip(&h).for_each(|(v, s)| *v += snr * s / norm);
+    }
+
     #[test]
     fn the_tiling_has_gwpy_s_planes() {
         // Q 4..64 at mismatch 0.2: ln(16)/√2 / (2√(0.2/3)) = 3.8 → 4 planes,
@@ -524,15 +538,7 @@ mod tests {
         assert!((sum / count as f64 - 1.0).abs() < 0.03, "mean normalised energy {}", sum / count as f64);
         // A sine-Gaussian of SNR 20 at 120 Hz, Q 8, t0 = 9 s.
         let (f0, q, t0, snr) = (120.0, 8.0, 9.0, 20.0);
-        let tau = q / (std::f64::consts::SQRT_2 * PI * f0);
-        let h: Vec<f64> = (0..n)
-            .map(|j| {
-                let dt = j as f64 / fs - t0;
-                (-(dt / tau).powi(2)).exp() * (TAU * f0 * dt).cos()
-            })
-            .collect();
-        let norm = h.iter().map(|v| v * v).sum::<f64>().sqrt();
-        x.iter_mut().zip(&h).for_each(|(v, s)| *v += snr * s / norm);
+        add_sine_gaussian(&mut x, fs, (f0, q, t0), snr);
         let spec = spectrum(&x);
         let mut best = (0.0, 0.0, 0.0, 0.0);
         for row in tiling.planes.iter().flat_map(|p| &p.rows) {
@@ -580,16 +586,8 @@ mod tests {
             assert!((mean - 1.0).abs() < 0.05, "row at {} Hz: mean normalised energy {mean}", row.frequency);
         }
         // A sine-Gaussian of Q 1.2 at 150 Hz, SNR 20, t0 = 7 s.
-        let (f0, q, t0, snr) = (150.0, 1.2, 7.0, 20.0);
-        let tau = q / (std::f64::consts::SQRT_2 * PI * f0);
-        let h: Vec<f64> = (0..n)
-            .map(|j| {
-                let dt = j as f64 / fs - t0;
-                (-(dt / tau).powi(2)).exp() * (TAU * f0 * dt).cos()
-            })
-            .collect();
-        let norm = h.iter().map(|v| v * v).sum::<f64>().sqrt();
-        x.iter_mut().zip(&h).for_each(|(v, s)| *v += snr * s / norm);
+        let (t0, snr) = (7.0, 20.0);
+        add_sine_gaussian(&mut x, fs, (150.0, 1.2, t0), snr);
         let spec = spectrum(&x);
         let best = |planes: &[QPlane]| {
             let mut best = (0.0f64, 0.0f64);
