@@ -167,7 +167,7 @@ pub struct ScanArgs {
     /// How unlikely in Gaussian noise a long glitch's summed excess power
     /// must be, as the SNR of a single tile equally unlikely: lower finds
     /// quieter Scratchy and Whistle glitches, higher makes fewer false
-    /// alarms in noisy data (0.34-0.39 per 100 s above SNR 8 in Gaussian
+    /// alarms in noisy data (0.39-0.44 per 100 s above SNR 8 in Gaussian
     /// noise at 5.5).
     #[arg(long, value_name = "SNR", default_value_t = ScanOptions::default().min_significance)]
     pub min_significance: f64,

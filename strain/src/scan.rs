@@ -80,9 +80,10 @@ pub struct ScanOptions {
     pub snr_threshold: f64,
     /// A trigger's most significant tile must also be this significant
     /// (see [`Threshold`]): the false-alarm control for excess-power windows.
-    /// 5.5 by default: in Gaussian noise 0.34-0.39 triggers per 100 s above
-    /// SNR 8 (issue #23 allows 1), where 5.4 made 0.49-0.59 for one more
-    /// injection found in ~1,200 (README, "Scanning real strain").
+    /// 5.5 by default: in Gaussian noise 0.39-0.44 triggers per 100 s above
+    /// SNR 8 (issue #23 allows 1; 0.34-0.39 before the Q 2.8 plane), where
+    /// 5.4 made 0.49-0.59 (before that plane) for one more injection found
+    /// in ~1,200 (README, "Scanning real strain").
     pub min_significance: f64,
     /// Tiles this significant join clusters (they extend a trigger in time and frequency).
     pub tile_threshold: f64,
