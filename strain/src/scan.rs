@@ -52,8 +52,9 @@ const EXCESS_POWER_MAX_DOF: f64 = 150.0;
 /// ~0.1 s), while a sum over seconds of a band ~100 Hz wide takes in the
 /// wandering amplitude of lines, such as the 60 Hz mains in real strain
 /// (GW150914's H1 file: a trigger of SNR 9.9 at 60 Hz over 2.2 s, which
-/// `gwml explain` names noise). On the simulated 4,096 s files the cap
-/// changed no recovery figure (0.25 s lost one Koi Fish on seed 43).
+/// `gwml explain` names noise). On the three simulated 4,096 s files and
+/// the noise files the cap changed no recovery figure (0.25 s lost one Koi
+/// Fish on seed 43); on the real-fit file, one Scattered Light of 390.
 const BROADBAND_Q: f64 = 4.0;
 /// See [`BROADBAND_Q`] (s).
 const BROADBAND_LONGEST_WINDOW: f64 = 0.5;
