@@ -73,8 +73,9 @@ impl Decimator {
 /// `Σ aᵢ bᵢ` over the shorter of the two, in eight interleaved partial
 /// sums: independent chains of additions that the compiler keeps in vector
 /// registers, where one running sum waits on every addition (a 4,096 s
-/// file at 16384 Hz scanned in 5.7-6.1 s that way, 4.3 s this one). The same slices always
-/// give the same sum, so a block of a file decimates as the whole does.
+/// file at 16384 Hz scanned in 5.7-6.1 s that way, 4.3 s this one). The
+/// same slices always give the same sum, so a block of a file decimates as
+/// the whole does.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     const LANES: usize = 8;
     let n = a.len().min(b.len());
