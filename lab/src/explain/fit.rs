@@ -267,11 +267,18 @@ fn refining(family: &Family) -> Settings {
     Settings { max_steps: 100, rel_tol: 1e-8, diagonal: family.scaled_steps, ..Settings::new(Algorithm::Lbfgs) }
 }
 
+/// How far (in units of loss) a point of a profile must fit better than
+/// the estimate for the fit to be redone from there ([`widen_to_profiles`]).
+pub(super) const PROFILE_JUMP: f64 = 0.1;
+
 /// Widens the σ of the family's `profiled` params of `fit` (on the
 /// window it was fitted to) to their profile likelihood's
 /// ([`profile_sigma`]), adding the evaluations spent to the fit's. Only
-/// the fits that compete for the verdict pay for it.
-pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut FamilyFit) -> Result<(), Error> {
+/// the fits that compete for the verdict pay for it. Returns the params of
+/// a profile point that fits better than the estimate by more than
+/// [`PROFILE_JUMP`], if one did: the fit stopped in a lesser mode along
+/// the valley the profile follows.
+pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut FamilyFit) -> Result<Option<Vec<f64>>, Error> {
     let mut run = scene.bind();
     run.input_real("d", &window.d)?;
     run.input_real("psd", &window.psd)?;
@@ -280,6 +287,7 @@ pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut Fam
     let x: Vec<f64> = fit.params.iter().map(|p| p.value).collect();
     let loss = fit.score.loss - window.cut_loss;
     let settings = Settings { max_steps: PROFILE_STEPS, ..refining(&fit.family) };
+    let mut better: Option<(f64, Vec<f64>)> = None;
     for (i, p) in free.iter().enumerate().filter(|(_, p)| fit.family.profiled.contains(&p.0.as_str())) {
         let Some(sigma) = fit.params[i].sigma else { continue };
         let fixed = |x: &[f64]| -> Result<(f64, Vec<f64>), Error> {
@@ -288,11 +296,26 @@ pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut Fam
             Ok((loss, grad))
         };
         let along = fit.covariance.as_ref().map(|c| c.iter().map(|row| row[i] / c[i][i]).collect());
-        let (wider, used) = profile_sigma(fixed, (&x, loss), (i, along), sigma, (&bounds, p.2), &settings)?;
-        fit.params[i].sigma = Some(wider);
-        fit.evaluations += used;
+        let profile = profile_sigma(fixed, (&x, loss), (i, along), sigma, (&bounds, p.2), &settings)?;
+        fit.params[i].sigma = Some(profile.sigma);
+        fit.evaluations += profile.evaluations;
+        if let Some((lower, at)) = profile.best.filter(|(lower, _)| *lower < loss - PROFILE_JUMP) {
+            if better.as_ref().is_none_or(|(l, _)| lower < *l) {
+                better = Some((lower, at));
+            }
+        }
     }
-    Ok(())
+    Ok(better.map(|(_, at)| at))
+}
+
+/// What [`profile_sigma`] found.
+struct Profile {
+    /// σ, widened.
+    sigma: f64,
+    /// Scene evaluations spent.
+    evaluations: usize,
+    /// The lower of the two profile points (loss, params), if any was taken.
+    best: Option<(f64, Vec<f64>)>,
 }
 
 /// σ of param `i` widened to the profile likelihood's: the loss minimised
@@ -305,8 +328,7 @@ pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut Fam
 /// makes its distance σ). Never narrowed; a side beyond a bound is
 /// skipped. Each profile fit starts from `x` moved along `along` (per
 /// unit of param `i`; `C_{ji}/C_{ii}` puts the others where a Gaussian
-/// likelihood's profile has them), kept inside their bounds. Returns σ
-/// and the evaluations spent.
+/// likelihood's profile has them), kept inside their bounds.
 fn profile_sigma(
     mut fixed: impl FnMut(&[f64]) -> Result<(f64, Vec<f64>), Error>,
     (x, loss): (&[f64], f64),
@@ -314,8 +336,9 @@ fn profile_sigma(
     sigma: f64,
     (bounds, range): (&[Range], Range),
     settings: &Settings,
-) -> Result<(f64, usize), Error> {
+) -> Result<Profile, Error> {
     let (mut wider, mut evaluations) = (sigma, 0);
+    let mut best: Option<(f64, Vec<f64>)> = None;
     for side in [-1.0, 1.0] {
         let step = side * PROFILE_AT * sigma;
         let inside = sigma > 0.0 && range.is_none_or(|(lo, hi)| lo < x[i] + step && x[i] + step < hi);
@@ -336,8 +359,11 @@ fn profile_sigma(
         if rise.is_finite() {
             wider = wider.max(PROFILE_AT * sigma / (2.0 * rise).sqrt());
         }
+        if m.loss.is_finite() && best.as_ref().is_none_or(|(l, _)| m.loss < *l) {
+            best = Some((m.loss, m.x));
+        }
     }
-    Ok((wider, evaluations))
+    Ok(Profile { sigma: wider, evaluations, best })
 }
 
 /// The variance each param gains from other modes of the likelihood:
@@ -446,21 +472,51 @@ mod tests {
         };
         let settings = Settings::new(Algorithm::Lbfgs);
         let free = [None, None];
-        let (sigma, used) = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings).unwrap();
+        let Profile { sigma, evaluations: used, .. } =
+            profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings).unwrap();
         assert!((sigma - 3.0 / 4.5f64.sqrt()).abs() < 1e-6, "σ {sigma}");
         assert!(used > 0);
         // Started where the Gaussian profile has y (x/2), the fits need fewer steps.
-        let (same, fewer) = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, Some(vec![1.0, 0.5])), 1.0, (&free, None), &settings).unwrap();
+        let Profile { sigma: same, evaluations: fewer, .. } =
+            profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, Some(vec![1.0, 0.5])), 1.0, (&free, None), &settings).unwrap();
         assert!((same - sigma).abs() < 1e-9 && fewer < used, "σ {same}, {fewer} evaluations against {used}");
         // A quartic rises faster than a Gaussian: σ stays.
         let steep =
             |v: &[f64]| -> Result<(f64, Vec<f64>), Error> { Ok((0.5 * v[0] * v[0] + v[0].powi(4) + 0.5 * v[1] * v[1], vec![0.0, v[1]])) };
-        assert_eq!(profile_sigma(steep, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings).unwrap().0, 1.0);
+        assert_eq!(profile_sigma(steep, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings).unwrap().sigma, 1.0);
         // A side beyond the param's bounds is skipped: only +3 is taken.
-        let (one_side, _) = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, Some((-2.0, 10.0))), &settings).unwrap();
+        let one_side = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, Some((-2.0, 10.0))), &settings).unwrap().sigma;
         assert!((one_side - 3.0 / 4.5f64.sqrt()).abs() < 1e-6, "σ {one_side}");
-        let (none, used) = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, Some((-2.0, 2.0))), &settings).unwrap();
-        assert_eq!((none, used), (1.0, 0));
+        let none = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, Some((-2.0, 2.0))), &settings).unwrap();
+        assert_eq!((none.sigma, none.evaluations), (1.0, 0));
+        assert!(none.best.is_none());
+    }
+
+    /// A profile point below the estimate is reported with its params, so
+    /// the fit can be redone from the deeper mode it reached; where both
+    /// points lie above the estimate, the lower one is reported and the
+    /// caller keeps the fit ([`PROFILE_JUMP`]).
+    #[test]
+    fn a_profile_that_reaches_a_deeper_mode_reports_it() {
+        // In x, a shallow well at 0 (depth 1, curvature 1) and a deeper one
+        // at 3.2 (depth 3): the profile at x = +3 lies in the deeper well.
+        // y is a nuisance centred on x / 4.
+        let two_wells = |v: &[f64]| -> Result<(f64, Vec<f64>), Error> {
+            let (x, y) = (v[0], v[1]);
+            let (a, b) = ((-0.5 * x * x).exp(), (-2.0 * (x - 3.2).powi(2)).exp());
+            let loss = -a - 3.0 * b + 0.5 * (y - 0.25 * x).powi(2);
+            Ok((loss, vec![0.0, y - 0.25 * x]))
+        };
+        let settings = Settings::new(Algorithm::Lbfgs);
+        let free = [None, None];
+        let p = profile_sigma(two_wells, (&[0.0, 0.0], -1.0), (0, None), 1.0, (&free, None), &settings).unwrap();
+        let (loss, x) = p.best.expect("a profile point");
+        assert!(loss < -1.0 - PROFILE_JUMP, "the profile at +3 should lie below the estimate's -1: {loss}");
+        assert!((x[0] - 3.0).abs() < 1e-12 && (x[1] - 0.75).abs() < 1e-6, "{x:?}");
+        // A single well: both points lie above the estimate.
+        let one_well = |v: &[f64]| -> Result<(f64, Vec<f64>), Error> { Ok((0.5 * v[0] * v[0] + 0.5 * v[1] * v[1], vec![0.0, v[1]])) };
+        let (loss, _) = profile_sigma(one_well, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings).unwrap().best.unwrap();
+        assert!((loss - 4.5).abs() < 1e-9, "{loss}");
     }
 
     /// Another mode as likely as the estimate counts half; one 10 units of

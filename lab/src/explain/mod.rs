@@ -61,6 +61,11 @@ pub const EXPLAIN_SOURCE: &str = include_str!("../../models/glitch/explain.gw");
 /// Fits within this `ln B` of the best have their neighbouring modes tried.
 const NEIGHBOUR_GATE: f64 = 10.0;
 
+/// How many times a competing fit is redone from a better point of its
+/// profile likelihood (`fit.rs`' `widen_to_profiles`); each redone fit's
+/// profiles are taken again.
+const PROFILE_JUMPS: usize = 2;
+
 /// A starting point: `dt` and the shape params.
 type Start = (f64, Vec<f64>);
 
@@ -685,7 +690,18 @@ impl Explainer {
                 let evaluations = fit.evaluations + hopped.evaluations;
                 *fit = FamilyFit { evaluations, ..hopped };
             }
-            widen_to_profiles(scene, window.0, fit)?;
+            // A profile point that fits better is a better mode along the
+            // valley the profile follows: the fit is redone from there.
+            let mut jumps = 0;
+            while let Some(x) = widen_to_profiles(scene, window.0, fit)? {
+                if jumps == PROFILE_JUMPS {
+                    break;
+                }
+                jumps += 1;
+                let jumped = fit_family(family, scene, window, Begin::Neighbours(x))?;
+                let evaluations = fit.evaluations + jumped.evaluations;
+                *fit = FamilyFit { evaluations, ..jumped };
+            }
             fit.seconds = seconds + clock.elapsed().as_secs_f64();
         }
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
