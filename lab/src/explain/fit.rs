@@ -269,7 +269,7 @@ fn refining(family: &Family) -> Settings {
 
 /// How far (in units of loss) a point of a profile must fit better than
 /// the estimate for the fit to be redone from there ([`widen_to_profiles`]).
-pub(super) const PROFILE_JUMP: f64 = 0.1;
+const PROFILE_JUMP: f64 = 0.1;
 
 /// Widens the σ of the family's `profiled` params of `fit` (on the
 /// window it was fitted to) to their profile likelihood's
