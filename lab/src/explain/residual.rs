@@ -36,8 +36,9 @@ const BLIP_Q: [f64; 3] = [1.2, 2.0, 3.5];
 const BLIPS: usize = 3;
 const HEADS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
 /// Head frequencies (Hz) and Qs searched, 12 % apart in frequency: a Koi
-/// Fish's head is low (the benchmark draws 15–45 Hz), the scene's bounds
-/// on `f_head`. Up to 80 Hz, the search also found a loud Blip's echo
+/// Fish's head is low (the benchmark draws 15–45 Hz), and these are the
+/// `koi_fish` scene's bounds on `f_head` too. Up to 80 Hz, the search
+/// also found a loud Blip's echo
 /// (5–30 ms before it at 0.6–1.6 times its frequency) as a head, and three
 /// of seed 1's Blips went to Koi Fish.
 const HEAD_F0: (f64, f64) = (15.0, 50.0);
