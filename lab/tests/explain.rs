@@ -257,8 +257,10 @@ fn a_scattered_light_fit_finds_the_lobe_of_the_surface_speed() {
     // The arches' phase splits the likelihood into lobes in `f_motion` a
     // few Fisher σ wide; the fringe search could start the fit in the
     // wrong one. Of seed 6's first 21 Scattered Light injections, four
-    // surface speeds were outside 3σ (3-43 % off, 9-36σ)
-    // before the fit tried its neighbours 1-12 % either way; two are now.
+    // surface speeds were outside 3σ (3-43 % off, 9-36σ) before the fit
+    // tried its neighbours 1-12 % either way, two after, and one since a
+    // slow surface's start stays where the data put it (0.16 Hz, not
+    // moved to 0.245 Hz by the starts' margin).
     let outcomes = campaign_outcomes("Scattered Light", 6, 21, |_| true);
     assert_eq!(outcomes.len(), 21);
     let pulls: Vec<f64> = outcomes
@@ -268,7 +270,7 @@ fn a_scattered_light_fit_finds_the_lobe_of_the_surface_speed() {
         .map(|(_, value, sigma, truth)| sigma.map_or(f64::INFINITY, |s| (value - truth) / s))
         .collect();
     let outside = pulls.iter().filter(|z| z.abs() > 3.0).count();
-    assert!(pulls.len() >= 20 && outside <= 2, "f_motion pulls {pulls:?}");
+    assert!(pulls.len() >= 20 && outside <= 1, "f_motion pulls {pulls:?}");
 }
 
 /// `(SNR, verdict)` of each of the first `first` injections of `class` in
