@@ -182,15 +182,16 @@ impl WhistleSearch {
             fft.process_with_scratch(&mut self.buf, &mut self.scratch);
             // Bin m holds the shift δ = m fs / len (negative shifts wrap
             // around; the stretch's start only turns the phase).
-            let at = |m: i64| self.buf[m.rem_euclid(len as i64) as usize].norm();
+            // Powers, not magnitudes: the peak is the same and no bin pays for a square root.
+            let power = |m: i64| self.buf[m.rem_euclid(len as i64) as usize].norm_sqr();
             let (below, above) = reach(first + i as f64 * step);
             let bins = ((-below / df).floor() as i64).max(-half_n)..=((above / df).ceil() as i64).min(half_n);
-            let (best, peak) = bins.map(|m| (m, at(m))).fold((0, -1.0), |b, c| if c.1 > b.1 { c } else { b });
+            let (best, peak) = bins.map(|m| (m, power(m))).fold((0, -1.0), |b, c| if c.1 > b.1 { c } else { b });
             // A matched template's lobe is a Gaussian in δ (the Fourier
             // transform of its energy envelope), so a parabola through the
-            // logarithms of the peak and its neighbours places it between
-            // bins and gives its height there.
-            let (l, p, r) = (at(best - 1).ln(), peak.ln(), at(best + 1).ln());
+            // logarithms of the peak's magnitude and its neighbours' places
+            // it between bins and gives its height there.
+            let (l, p, r) = (0.5 * power(best - 1).ln(), 0.5 * peak.ln(), 0.5 * power(best + 1).ln());
             let curvature = l - 2.0 * p + r;
             let offset = if curvature < 0.0 { (0.5 * (l - r) / curvature).clamp(-0.5, 0.5) } else { 0.0 };
             let height = (p - 0.25 * (l - r) * offset).exp();
