@@ -66,9 +66,6 @@ fn each_family_is_told_apart_and_its_params_recovered() {
             if label == "Scattered Light" && name == "f_motion" {
                 assert!(median < 0.05, "{label} {name}: median relative error {median}");
             }
-            if label == "Blip" && name == "q" {
-                assert!(median < 0.3, "blip q: median relative error {median}");
-            }
         }
     }
     // Every fit is finite and its evidence well defined.
@@ -250,6 +247,26 @@ fn a_blip_with_an_echo_below_it_is_not_a_koi_fish() {
     let verdicts = campaign_verdicts("Blip", 2, 60, |i| param(i, "echo") > 0.3 && param(i, "f0") < 100.0 && i.snr < 25.0);
     assert!(verdicts.len() >= 3, "{verdicts:?}");
     assert!(verdicts.iter().all(|v| v.1 != "Koi Fish"), "{verdicts:?}");
+}
+
+#[test]
+fn blip_shapes_come_back_within_the_targets_in_the_median() {
+    // The targets: f0 within 10 % and Q within 30 % of the truth
+    // in the median. A low-Q blip's Q lies along a flat valley (σ ~30 %),
+    // so the median of four moved from 0.2 to 0.36 with the rounding of
+    // the loss (one fit landing 2.4 higher in loss): twelve, each class's
+    // own SNR range (from 10 up).
+    let outcomes = campaign_outcomes("Blip", 3, 12, |_| true);
+    assert_eq!(outcomes.len(), 12);
+    let median_error = |param: &str| {
+        let mut errors: Vec<f64> =
+            outcomes.iter().flat_map(|o| o.recovered()).filter(|r| r.0 == param).map(|(_, v, _, t)| ((v - t) / t).abs()).collect();
+        assert_eq!(errors.len(), 12, "{param}: {errors:?}");
+        errors.sort_by(f64::total_cmp);
+        0.5 * (errors[5] + errors[6])
+    };
+    let (f0, q) = (median_error("f0"), median_error("q"));
+    assert!(f0 < 0.1 && q < 0.3, "median relative errors: f0 {f0}, q {q}");
 }
 
 #[test]

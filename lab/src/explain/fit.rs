@@ -2,7 +2,7 @@
 //! L-BFGS from the best, a fit's neighbouring modes, and at the end the
 //! Fisher matrix, σ and Laplace evidence.
 
-use super::{interpolate, Decimated, Estimate, Family, FamilyFit, FreeParam, Seed, Start};
+use super::{interpolate, Decimated, Estimate, Family, FamilyFit, FamilyScenes, FreeParam, Seed, Start};
 use gwml_runtime::fit::{
     bic, fit_run, invert_fisher, laplace_evidence, minimize, newton_polish, Algorithm, Minimum, NewtonSettings, Score, Settings, Stop,
 };
@@ -39,6 +39,14 @@ pub(super) fn free_params(scene: &Scene) -> Vec<FreeParam> {
         .collect()
 }
 
+/// A run of `scene` on the window's data and PSD.
+fn bind<'s>(scene: &'s Scene, window: &Decimated) -> Result<Run<'s>, Error> {
+    let mut run = scene.bind();
+    run.input_real("d", &window.d)?;
+    run.input_real("psd", &window.psd)?;
+    Ok(run)
+}
+
 fn set(run: &mut Run, names: &[FreeParam], x: &[f64]) -> Result<(), Error> {
     for ((name, _, _), v) in names.iter().zip(x) {
         run.param(name, *v)?;
@@ -69,12 +77,15 @@ pub(super) enum Begin<'a> {
 /// starts ranked by their match, L-BFGS (and, from a fit, its neighbouring
 /// modes), Fisher matrix and evidence, with the loss and model of the
 /// full-rate window.
-pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decimated, f64), begin: Begin) -> Result<FamilyFit, Error> {
-    let (d, psd) = (&window.d, &window.psd);
-    let mut run = scene.bind();
-    run.input_real("d", d)?;
-    run.input_real("psd", psd)?;
-    let free = free_params(scene);
+pub(super) fn fit_family(
+    family: &Family,
+    scenes: &FamilyScenes,
+    (window, rate): (&Decimated, f64),
+    begin: Begin,
+) -> Result<FamilyFit, Error> {
+    let d = &window.d;
+    let mut run = bind(&scenes.fit, window)?;
+    let free = free_params(&scenes.fit);
     if free.len() < 3 || free[0].0 != "dt" || free[1].0 != "snr" || free[2].0 != "phi" {
         return Err(Error::Bind(format!("the `{}` scene must fit `dt`, `snr` and `phi` first", family.scene)));
     }
@@ -197,10 +208,11 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
     // Where the loss's Hessian is not positive definite, the fit stopped a
     // little short of its floor (a whistle's span, width and wiggle trade
     // along a curved valley): σ from the model's JᵀJ instead.
+    let mut shape = bind(&scenes.shape, window)?;
     let covariance = match fit.covariance {
         Ok(c) => Ok(c),
         Err(e) => {
-            let gauss_newton = model_fisher(&mut run, &free, &x, &prior, &mut evaluations)?;
+            let gauss_newton = model_fisher(&mut shape, &free, &x, &prior, &mut evaluations)?;
             // Only where the model describes the data: JᵀJ no stiffer than
             // the Hessian along any param the Hessian curves up.
             let agrees = (0..x.len()).all(|i| fit.fisher[i][i] <= 0.0 || gauss_newton[i][i] <= 2.0 * fit.fisher[i][i]);
@@ -211,7 +223,7 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
             }
         }
     };
-    set(&mut run, &free, &x)?;
+    set(&mut shape, &free, &x)?;
     let loss = fit.minimum.loss + window.cut_loss;
     let samples = d.len() * window.factor;
     let score =
@@ -233,7 +245,7 @@ pub(super) fn fit_family(family: &Family, scene: &Scene, (window, rate): (&Decim
             bounds: prior[i].expect("every param of a family has bounds"),
         })
         .collect();
-    let Value::RealArray(model) = run.forward()?.value("model")?.clone() else {
+    let Value::RealArray(model) = shape.forward()?.value("model")?.clone() else {
         return Err(Error::Bind(format!("the `{}` scene's `model` is not a real array", family.scene)));
     };
     let model = interpolate(&model, window.factor);
@@ -285,9 +297,7 @@ const PROFILE_JUMP: f64 = 0.1;
 /// [`PROFILE_JUMP`], if one did: the fit stopped in a lesser mode along
 /// the valley the profile follows.
 pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut FamilyFit) -> Result<Option<Vec<f64>>, Error> {
-    let mut run = scene.bind();
-    run.input_real("d", &window.d)?;
-    run.input_real("psd", &window.psd)?;
+    let mut run = bind(scene, window)?;
     let free = free_params(scene);
     let bounds: Vec<Range> = free.iter().map(|p| p.2).collect();
     let x: Vec<f64> = fit.params.iter().map(|p| p.value).collect();

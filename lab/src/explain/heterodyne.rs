@@ -107,12 +107,17 @@ pub struct WhistleSearch {
     fs: f64,
     buf: Vec<Complex64>,
     scratch: Vec<Complex64>,
+    /// The last scan's per-sample span rotation and what it was for
+    /// (vertex time, half-width, span step, as bits): consecutive scans
+    /// of other wiggles or vertex frequencies reuse it.
+    rotation: ((u64, u64, u64), Vec<Complex64>),
 }
 
 impl WhistleSearch {
     /// A search over windows sampled at `fs` Hz.
     pub fn new(fs: f64) -> WhistleSearch {
-        WhistleSearch { planner: FftPlanner::new(), ffts: HashMap::new(), fs, buf: Vec::new(), scratch: Vec::new() }
+        let rotation = ((0, 0, 0), Vec::new());
+        WhistleSearch { planner: FftPlanner::new(), ffts: HashMap::new(), fs, buf: Vec::new(), scratch: Vec::new(), rotation }
     }
 
     /// The forward FFT of length `len`, planned once.
@@ -155,7 +160,6 @@ impl WhistleSearch {
         // the rotation e^{−2πiτ step u²/3} that moves it to the next span
         // (zero past the envelope's stretch, up to the FFT's length).
         let mut product = vec![Complex64::default(); len];
-        let mut rotation = vec![Complex64::new(1.0, 0.0); len];
         let mut norm = 0.0;
         for (j, k) in (first_k..=last_k).enumerate() {
             let tau = k as f64 / self.fs - centre;
@@ -165,7 +169,21 @@ impl WhistleSearch {
             let chirp = -TAU * tau * u * u / 3.0;
             let bend = -TAU * tau * wiggle * u.powi(4) / 5.0;
             product[j] = Complex64::from_polar(d[k] * envelope, -TAU * tau * f + chirp * first + bend);
-            rotation[j] = Complex64::from_polar(1.0, chirp * step);
+        }
+        let key = (dt.to_bits(), half.to_bits(), step.to_bits());
+        if count > 1 && (self.rotation.0 != key || self.rotation.1.len() != len) {
+            let rotation = (0..len)
+                .map(|j| {
+                    let tau = (first_k + j) as f64 / self.fs - centre;
+                    let u = tau / half;
+                    if first_k + j <= last_k {
+                        Complex64::from_polar(1.0, -TAU * tau * u * u / 3.0 * step)
+                    } else {
+                        Complex64::new(1.0, 0.0)
+                    }
+                })
+                .collect();
+            self.rotation = (key, rotation);
         }
         let fft = self.fft(len);
         self.scratch.resize(fft.get_inplace_scratch_len(), Complex64::default());
@@ -175,7 +193,7 @@ impl WhistleSearch {
         let mut out = Vec::with_capacity(count);
         for i in 0..count {
             if i > 0 {
-                product.iter_mut().zip(&rotation).for_each(|(p, r)| *p *= r);
+                product.iter_mut().zip(&self.rotation.1).for_each(|(p, r)| *p *= r);
             }
             self.buf.clear();
             self.buf.extend_from_slice(&product);
@@ -435,6 +453,13 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
         .collect();
     let mut input = vec![0.0; pad];
     let mut spectrum = vec![Complex64::default(); pad / 2 + 1];
+    // Bin j's phase from the padded series' start to the window's centre, e^{2πi j df centre}.
+    let to_centre: Vec<Complex64> = (0..spectrum.len()).map(|j| Complex64::from_polar(1.0, TAU * j as f64 * df * centre)).collect();
+    let last = (pad / 2) as i64;
+    let bin = |j: i64| j.unsigned_abs().min(last as u64) as usize;
+    let carriers = (j_hi - j_lo + 1) as usize;
+    let (mut matched, mut best_of_betas) = (vec![0.0f64; carriers], vec![0.0f64; carriers]);
+    let mut combs: Vec<(f64, i64, i64)> = Vec::with_capacity(carriers * (r_hi - r_lo + 2) as usize / 2);
     let mut found: Vec<(f64, Start)> = Vec::new();
     let centres = seed.arches.map(|a| a.dt).into_iter().chain([-0.15, 0.0, 0.15]);
     for dt_e in centres.map(|t: f64| t.clamp(-0.3, 0.3)) {
@@ -451,25 +476,26 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
             fft.process(&mut input, &mut spectrum).expect("buffer lengths match the plan");
             // D(f) relative to the window's centre: bin j times e^{2πi f centre};
             // D(−f) is its conjugate (the data are real).
-            spectrum.iter_mut().enumerate().for_each(|(j, v)| *v *= Complex64::from_polar(1.0, TAU * j as f64 * df * centre));
-            let power: Vec<f64> = spectrum.iter().map(|v| v.norm_sqr()).collect();
-            let last = (pad / 2) as i64;
-            let bin = |j: i64| j.unsigned_abs().min(last as u64) as usize;
+            spectrum.iter_mut().zip(&to_centre).for_each(|(v, turn)| *v *= turn);
             let at = |j: i64| if j < 0 { spectrum[bin(j)].conj() } else { spectrum[bin(j)] };
             // The comb search: per carrier and rate, the matched power for
-            // each β (its noise is the same for all). `around[j + reach]` is
-            // the power at bin j for every bin a comb reaches.
-            let around: Vec<f64> = (j_lo - reach..=j_hi + reach).map(|j| power[bin(j)]).collect();
-            let mut combs: Vec<(f64, i64, i64)> = Vec::with_capacity(((j_hi - j_lo + 1) * (r_hi - r_lo + 2) / 2) as usize);
+            // each β (its noise is the same for all). `around[i + reach]` is
+            // the power at bin `j_lo + i` for every bin a comb reaches. Per
+            // rate and line, the weighted powers of every carrier at once
+            // (contiguous runs of `around`, which vectorise).
+            let around: Vec<f64> = (j_lo - reach..=j_hi + reach).map(|j| spectrum[bin(j)].norm_sqr()).collect();
+            combs.clear();
             for r in (r_lo..=r_hi).step_by(2) {
-                for j0 in j_lo..=j_hi {
-                    let centre = (j0 - j_lo + reach) as usize;
-                    let best = comb_weights
-                        .iter()
-                        .map(|w| w.iter().map(|(m, w)| w * around[(centre as i64 + m * r) as usize]).sum::<f64>())
-                        .fold(0.0, f64::max);
-                    combs.push((best, j0, r));
+                best_of_betas.fill(0.0);
+                for weights in &comb_weights {
+                    matched.fill(0.0);
+                    for &(m, w) in weights {
+                        let from = (reach + m * r) as usize;
+                        matched.iter_mut().zip(&around[from..from + carriers]).for_each(|(sum, p)| *sum += w * p);
+                    }
+                    best_of_betas.iter_mut().zip(&matched).for_each(|(best, sum)| *best = best.max(*sum));
                 }
+                combs.extend(best_of_betas.iter().enumerate().map(|(i, best)| (*best, j_lo + i as i64, r)));
             }
             // The strongest few hundred, best first (neighbours of one comb crowd the top).
             let top = combs.len().min(256);
@@ -487,6 +513,7 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
             }
             // The coherent scan around each: carrier ±2 bins, rate ±1 bin, β and the arches' phase.
             for (j0, r0) in refined {
+                // (|z|², carrier bin, rate bin, β, ψ)
                 let mut best = (0.0, 0, 0, 0.0, 0.0);
                 for j in j0 - 2..=j0 + 2 {
                     for r in r0 - 1..=r0 + 1 {
@@ -501,14 +528,15 @@ pub fn scratchy_starts_from_data(d: &[f64], fs: f64, seed: &Seed, keep: usize) -
                                     .enumerate()
                                     .map(|(i, (c, line))| line * turn[(i as i64 - m_max + MAX_M) as usize] * *c)
                                     .sum();
-                                if z.norm() > best.0 {
-                                    best = (z.norm(), j, r, *beta, TAU * p as f64 / PHASES as f64);
+                                if z.norm_sqr() > best.0 {
+                                    best = (z.norm_sqr(), j, r, *beta, TAU * p as f64 / PHASES as f64);
                                 }
                             }
                         }
                     }
                 }
-                let (match_, j, r, beta, psi) = best;
+                let (power, j, r, beta, psi) = best;
+                let match_ = power.sqrt();
                 let (f0, rate) = (j as f64 * df, r as f64 * df);
                 // ψ = 2π rate dt: the dt nearest the envelope's centre with that phase.
                 let turns = psi / TAU - rate * dt_e;

@@ -517,11 +517,24 @@ pub fn explain_at(explainer: &Explainer, w: &Whitened, gps: f64, band: (f64, f64
 
 /// The fit scenes, compiled once for a window and reused for every trigger.
 pub struct Explainer {
-    /// Each family's scene and the divisor of the rate it runs at.
-    scenes: Vec<(Family, Scene, usize)>,
+    /// Each family's scenes and the divisor of the rate it runs at.
+    scenes: Vec<(Family, FamilyScenes, usize)>,
     samples: usize,
     sample_rate: f64,
 }
+
+/// One family's scene, compiled twice from `explain.gw`.
+pub(super) struct FamilyScenes {
+    /// `loss` and `overlap` alone, what the fits evaluate: without the
+    /// `model` series they take no inverse transform.
+    pub(super) fit: Scene,
+    /// Every output: `model`, the fitted shape, for the report and the
+    /// Gauss–Newton Fisher matrix.
+    pub(super) shape: Scene,
+}
+
+/// The outputs a fit evaluates (see [`FamilyScenes::fit`]).
+const FIT_OUTPUTS: [&str; 2] = ["loss", "overlap"];
 
 /// One fitted param.
 #[derive(Clone, Debug, PartialEq)]
@@ -646,7 +659,10 @@ impl Explainer {
                 knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
                 ..Options::default()
             };
-            Ok((*family, model.scene_with(Some(family.scene), options)?, factor))
+            let fit = Options { outputs: Some(FIT_OUTPUTS.map(String::from).to_vec()), ..options.clone() };
+            let scenes =
+                FamilyScenes { fit: model.scene_with(Some(family.scene), fit)?, shape: model.scene_with(Some(family.scene), options)? };
+            Ok((*family, scenes, factor))
         };
         let scenes = FAMILIES.iter().map(compile).collect::<Result<_, Error>>()?;
         Ok(Explainer { scenes, samples, sample_rate: o.sample_rate })
@@ -727,7 +743,7 @@ impl Explainer {
             // A profile point that fits better is a better mode along the
             // valley the profile follows: the fit is redone from there.
             let mut jumps = 0;
-            while let Some(x) = widen_to_profiles(scene, window.0, fit)? {
+            while let Some(x) = widen_to_profiles(&scene.fit, window.0, fit)? {
                 if jumps == PROFILE_JUMPS {
                     break;
                 }
