@@ -120,6 +120,9 @@ pub(super) fn fit_family(
         Ok::<_, Error>(m)
     };
     let better = |best: Minimum, m: Minimum| if m.loss < best.loss { m } else { best };
+    // A fit from its params is polished; one from a search only where
+    // L-BFGS ran out of steps (the others wait for the verdict's contest).
+    let from_params = matches!(begin, Begin::Neighbours(_));
     // The fit's mode, and the other modes known (from the neighbours).
     let (mut best, rivals) = match begin {
         Begin::Search { seed, more, besides } => {
@@ -178,18 +181,23 @@ pub(super) fn fit_family(
         }
     };
     best.x[2] = best.x[2].rem_euclid(TAU);
-    // 3. Fisher matrix and errors at the best fit (a few more steps if it
-    // can still improve). Newton steps on the Fisher matrix follow where
+    // 3. Fisher matrix and errors at the best fit, after a polish (more
+    // steps to the tighter tolerance) for a fit from params or one whose
+    // L-BFGS ran out of steps; a search's other fits are polished only
+    // if they contend for the verdict (`Explainer::explain`), and the
+    // rest keep their refined minimum. Newton steps on the Fisher matrix follow where
     // those ran out, and where the Hessian at their end is not positive
     // definite (then kept only if they end where it is: a fit that stopped
     // short of its floor). After a polish that converged with a positive
     // definite Hessian they are not taken: on seed 1's chirps they left
     // two fits with σ(mc) ~1e-5 Msun, a Hessian no smooth likelihood has.
+    let polished = from_params || best.stop == Stop::Steps;
     set(&mut run, &free, &best.x)?;
-    let mut fit = fit_run(&mut run, Some("loss"), &Settings { rel_tol: 1e-9, ..settings.clone() }, |_| {})?;
+    let steps = if polished { settings.max_steps } else { 0 };
+    let mut fit = fit_run(&mut run, Some("loss"), &Settings { rel_tol: 1e-9, max_steps: steps, ..settings.clone() }, |_| {})?;
     evaluations += fit.minimum.evaluations + 2 * free.len() + 2;
-    let stalled = fit.minimum.stop == Stop::Steps;
-    if stalled || fit.covariance.is_err() {
+    let stalled = polished && fit.minimum.stop == Stop::Steps;
+    if polished && (stalled || fit.covariance.is_err()) {
         let newton = |x: &[f64]| loss_and_grad(&mut run, &free, x);
         let polished = newton_polish(newton, fit.minimum.clone(), fit.fisher.clone(), &bounds, &fit.fisher_steps, &NEWTON)?;
         evaluations += polished.minimum.evaluations - fit.minimum.evaluations;
@@ -258,6 +266,7 @@ pub(super) fn fit_family(
         covariance: covariance.ok().map(|c| c.covariance),
         evaluations: evaluations + 1,
         seconds: 0.0,
+        polished,
     })
 }
 

@@ -59,7 +59,8 @@ use std::time::Instant;
 /// The scenes of the fits.
 pub const EXPLAIN_SOURCE: &str = include_str!("../../models/glitch/explain.gw");
 
-/// Fits within this `ln B` of the best have their neighbouring modes tried.
+/// Fits within this `ln B` of the best are polished and have their
+/// neighbouring modes tried.
 const NEIGHBOUR_GATE: f64 = 10.0;
 
 /// How many times a competing fit is redone from a better point of its
@@ -576,6 +577,10 @@ pub struct FamilyFit {
     pub evaluations: usize,
     /// Seconds the fit took, its starts' searches included (one thread).
     pub seconds: f64,
+    /// Whether the fit was polished to `|ΔL| ≤ 1e-9 L` (and by Newton
+    /// steps where L-BFGS ran out): every fit within [`NEIGHBOUR_GATE`]
+    /// of the best is; the others keep their refined minimum (1e-8).
+    pub polished: bool,
 }
 
 impl FamilyFit {
@@ -728,13 +733,14 @@ impl Explainer {
         // The neighbouring modes and profiled σ of the fits that compete
         // for the verdict (only there do their params matter enough to pay for them).
         let best = fits.first().map_or(f64::NEG_INFINITY, FamilyFit::ln_z);
-        let comes_back = |f: &Family| f.neighbours.is_some() || !f.profiled.is_empty();
-        for fit in fits.iter_mut().filter(|f| comes_back(&f.family) && f.ln_z() >= best - NEIGHBOUR_GATE) {
+        let comes_back = |f: &FamilyFit| !f.polished || f.family.neighbours.is_some() || !f.family.profiled.is_empty();
+        for fit in fits.iter_mut().filter(|f| comes_back(f) && f.ln_z() >= best - NEIGHBOUR_GATE) {
             let clock = Instant::now();
             let (family, scene, factor) = self.scenes.iter().find(|(f, ..)| f.scene == fit.family.scene).expect("a compiled family");
             let window = (at(*factor), self.sample_rate / *factor as f64);
             let seconds = fit.seconds;
-            if family.neighbours.is_some() {
+            // Refitted from its params: polished, and its neighbours tried.
+            if !fit.polished || family.neighbours.is_some() {
                 let x = fit.params.iter().map(|p| p.value).collect();
                 let hopped = fit_family(family, scene, window, Begin::Neighbours(x))?;
                 let evaluations = fit.evaluations + hopped.evaluations;
