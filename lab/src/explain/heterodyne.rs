@@ -26,7 +26,7 @@
 
 use super::seeds::Seed;
 use super::Start;
-use num_complex::Complex64;
+use num_complex::{Complex32, Complex64};
 use realfft::RealFftPlanner;
 use rustfft::{Fft, FftPlanner};
 use std::collections::HashMap;
@@ -102,15 +102,15 @@ const FINE_SPAN_STEP: f64 = 5.0;
 /// and a parabola through the logarithms of the peak's three places it
 /// between them. Short templates cost a fraction of a whole window's FFT.
 pub struct WhistleSearch {
-    planner: FftPlanner<f64>,
-    ffts: HashMap<usize, Arc<dyn Fft<f64>>>,
+    planner: FftPlanner<f32>,
+    ffts: HashMap<usize, Arc<dyn Fft<f32>>>,
     fs: f64,
-    buf: Vec<Complex64>,
-    scratch: Vec<Complex64>,
+    buf: Vec<Complex32>,
+    scratch: Vec<Complex32>,
     /// The last scan's per-sample span rotation and what it was for
     /// (vertex time, half-width, span step, as bits): consecutive scans
     /// of other wiggles or vertex frequencies reuse it.
-    rotation: ((u64, u64, u64), Vec<Complex64>),
+    rotation: ((u64, u64, u64), Vec<Complex32>),
 }
 
 impl WhistleSearch {
@@ -121,7 +121,7 @@ impl WhistleSearch {
     }
 
     /// The forward FFT of length `len`, planned once.
-    fn fft(&mut self, len: usize) -> Arc<dyn Fft<f64>> {
+    fn fft(&mut self, len: usize) -> Arc<dyn Fft<f32>> {
         let planner = &mut self.planner;
         self.ffts.entry(len).or_insert_with(|| planner.plan_fft_forward(len)).clone()
     }
@@ -159,7 +159,7 @@ impl WhistleSearch {
         // Per sample: d_k e^{-u²} e^{−2πiτ(f + first·u²/3 + wiggle·u⁴/5)} and
         // the rotation e^{−2πiτ step u²/3} that moves it to the next span
         // (zero past the envelope's stretch, up to the FFT's length).
-        let mut product = vec![Complex64::default(); len];
+        let mut product = vec![Complex32::default(); len];
         let mut norm = 0.0;
         for (j, k) in (first_k..=last_k).enumerate() {
             let tau = k as f64 / self.fs - centre;
@@ -168,7 +168,7 @@ impl WhistleSearch {
             norm += envelope * envelope;
             let chirp = -TAU * tau * u * u / 3.0;
             let bend = -TAU * tau * wiggle * u.powi(4) / 5.0;
-            product[j] = Complex64::from_polar(d[k] * envelope, -TAU * tau * f + chirp * first + bend);
+            product[j] = single(Complex64::from_polar(d[k] * envelope, -TAU * tau * f + chirp * first + bend));
         }
         let key = (dt.to_bits(), half.to_bits(), step.to_bits());
         if count > 1 && (self.rotation.0 != key || self.rotation.1.len() != len) {
@@ -177,16 +177,16 @@ impl WhistleSearch {
                     let tau = (first_k + j) as f64 / self.fs - centre;
                     let u = tau / half;
                     if first_k + j <= last_k {
-                        Complex64::from_polar(1.0, -TAU * tau * u * u / 3.0 * step)
+                        single(Complex64::from_polar(1.0, -TAU * tau * u * u / 3.0 * step))
                     } else {
-                        Complex64::new(1.0, 0.0)
+                        Complex32::new(1.0, 0.0)
                     }
                 })
                 .collect();
             self.rotation = (key, rotation);
         }
         let fft = self.fft(len);
-        self.scratch.resize(fft.get_inplace_scratch_len(), Complex64::default());
+        self.scratch.resize(fft.get_inplace_scratch_len(), Complex32::default());
         let df = self.fs / len as f64;
         let half_n = (len / 2) as i64 - 1;
         let snr_per_peak = if norm > 0.0 { 1.0 / (0.5 * norm).sqrt() } else { 0.0 };
@@ -201,7 +201,7 @@ impl WhistleSearch {
             // Bin m holds the shift δ = m fs / len (negative shifts wrap
             // around; the stretch's start only turns the phase).
             // Powers, not magnitudes: the peak is the same and no bin pays for a square root.
-            let power = |m: i64| self.buf[m.rem_euclid(len as i64) as usize].norm_sqr();
+            let power = |m: i64| f64::from(self.buf[m.rem_euclid(len as i64) as usize].norm_sqr());
             let (below, above) = reach(first + i as f64 * step);
             let bins = ((-below / df).floor() as i64).max(-half_n)..=((above / df).ceil() as i64).min(half_n);
             let (best, peak) = bins.map(|m| (m, power(m))).fold((0, -1.0), |b, c| if c.1 > b.1 { c } else { b });
@@ -217,6 +217,12 @@ impl WhistleSearch {
         }
         out
     }
+}
+
+/// `z` in single precision, what the whistle search transforms in: its
+/// matches rank shapes, and f32 FFTs take half the time of f64's.
+fn single(z: Complex64) -> Complex32 {
+    Complex32::new(z.re as f32, z.im as f32)
 }
 
 /// The least `2^a 3^b ≥ n`: lengths rustfft transforms fastest.
@@ -639,11 +645,12 @@ mod tests {
         // Off the true span by 200 Hz the match is lost wherever the vertex goes.
         let (_, off) = search.tune(&d, (0.01, 574.0, 263.0, 0.16), 40.0);
         assert!(off < 0.6 * snr, "match {off} at the wrong span");
-        // Spans scanned by rotation match spans tuned one by one.
+        // Spans scanned by rotation match spans tuned one by one (to the
+        // single precision the search transforms in: 1e-7 measured).
         let scanned = search.scan_spans(&d, (0.01, 574.0, 0.16, 0.0), (263.0, 50.0, 5), |_| (40.0, 40.0));
         for (i, (f_i, snr_i)) in scanned.iter().enumerate() {
             let (f_1, snr_1) = search.tune(&d, (0.01, 574.0, 263.0 + 50.0 * i as f64, 0.16), 40.0);
-            assert!((f_i - f_1).abs() < 1e-6 && (snr_i - snr_1).abs() < 1e-9 * snr_1, "span {i}: {f_i} {snr_i} against {f_1} {snr_1}");
+            assert!((f_i - f_1).abs() < 1e-4 && (snr_i - snr_1).abs() < 1e-5 * snr_1, "span {i}: {f_i} {snr_i} against {f_1} {snr_1}");
         }
         assert!((scanned[4].0 - 589.1).abs() < 0.5, "{scanned:?}");
     }
