@@ -71,6 +71,8 @@ pub(super) enum Begin<'a> {
     /// From a fit's params (`dt`, `snr`, `phi`, shape): the family's
     /// neighbouring modes are tried, and the best is kept.
     Neighbours(Vec<f64>),
+    /// From a fit's params, refined and polished there alone.
+    Params(Vec<f64>),
 }
 
 /// Fits one family to the window at its rate, from where `begin` says:
@@ -122,7 +124,8 @@ pub(super) fn fit_family(
     let better = |best: Minimum, m: Minimum| if m.loss < best.loss { m } else { best };
     // A fit from its params is polished; one from a search only where
     // L-BFGS ran out of steps (the others wait for the verdict's contest).
-    let from_params = matches!(begin, Begin::Neighbours(_));
+    let from_params = !matches!(begin, Begin::Search { .. });
+    let hops = if matches!(begin, Begin::Neighbours(_)) { NEIGHBOUR_ROUNDS } else { 0 };
     // The fit's mode, and the other modes known (from the neighbours).
     let (mut best, rivals) = match begin {
         Begin::Search { seed, more, besides } => {
@@ -148,10 +151,10 @@ pub(super) fn fit_family(
                 .ok_or_else(|| Error::Bind(format!("no starting point of the `{}` fit has a finite match with the data", family.scene)))?;
             (best, Vec::new())
         }
-        Begin::Neighbours(x) => {
+        Begin::Neighbours(x) | Begin::Params(x) => {
             let mut minima = vec![refine(&mut run, &x, &mut evaluations)?];
             // Each better neighbour's own neighbours too (a mode two steps away).
-            for _ in 0..NEIGHBOUR_ROUNDS {
+            for _ in 0..hops {
                 let Some(neighbours) = family.neighbours else { break };
                 let best = minima.iter().min_by(|a, b| a.loss.total_cmp(&b.loss)).expect("one minimum");
                 let (loss, near) = (best.loss, neighbours(&(best.x[0], best.x[3..].to_vec())));

@@ -63,6 +63,12 @@ pub const EXPLAIN_SOURCE: &str = include_str!("../../models/glitch/explain.gw");
 /// neighbouring modes tried.
 const NEIGHBOUR_GATE: f64 = 10.0;
 
+/// Fits within this `ln B` of noise alone are polished: whether they
+/// beat noise is in doubt, and a polish can move them by more than
+/// [`NEIGHBOUR_GATE`] (a blip beside the README's whistle had ln B −10.3
+/// against noise before its polish, +3.3 after).
+const NOISE_GATE: f64 = 20.0;
+
 /// How many times a competing fit is redone from a better point of its
 /// profile likelihood (`fit.rs`' `widen_to_profiles`); each redone fit's
 /// profiles are taken again.
@@ -579,7 +585,8 @@ pub struct FamilyFit {
     pub seconds: f64,
     /// Whether the fit was polished to `|ΔL| ≤ 1e-9 L` (and by Newton
     /// steps where L-BFGS ran out): every fit within [`NEIGHBOUR_GATE`]
-    /// of the best is; the others keep their refined minimum (1e-8).
+    /// of the best or [`NOISE_GATE`] of noise alone is; the others keep their refined
+    /// minimum (1e-8).
     pub polished: bool,
 }
 
@@ -731,25 +738,33 @@ impl Explainer {
         });
         let mut fits = fits;
         // The neighbouring modes and profiled σ of the fits that compete
-        // for the verdict (only there do their params matter enough to pay for them).
+        // for the verdict (only there do their params matter enough to pay
+        // for them), and a polish for those and for the fits whose ln B
+        // against noise alone is within [`NOISE_GATE`].
         let best = fits.first().map_or(f64::NEG_INFINITY, FamilyFit::ln_z);
-        let comes_back = |f: &FamilyFit| !f.polished || f.family.neighbours.is_some() || !f.family.profiled.is_empty();
-        for fit in fits.iter_mut().filter(|f| comes_back(f) && f.ln_z() >= best - NEIGHBOUR_GATE) {
+        let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();
+        let contends = |f: &FamilyFit| f.ln_z() >= best - NEIGHBOUR_GATE;
+        let near_noise = |f: &FamilyFit| (f.ln_z() + noise_loss).abs() <= NOISE_GATE;
+        let refined = |f: &Family| f.neighbours.is_some() || !f.profiled.is_empty();
+        let comes_back = |f: &FamilyFit| (contends(f) && (refined(&f.family) || !f.polished)) || (near_noise(f) && !f.polished);
+        for fit in fits.iter_mut().filter(|f| comes_back(f)) {
+            let contender = contends(fit);
             let clock = Instant::now();
             let (family, scene, factor) = self.scenes.iter().find(|(f, ..)| f.scene == fit.family.scene).expect("a compiled family");
             let window = (at(*factor), self.sample_rate / *factor as f64);
             let seconds = fit.seconds;
             // Refitted from its params: polished, and its neighbours tried.
-            if !fit.polished || family.neighbours.is_some() {
+            if !fit.polished || (contender && family.neighbours.is_some()) {
                 let x = fit.params.iter().map(|p| p.value).collect();
-                let hopped = fit_family(family, scene, window, Begin::Neighbours(x))?;
+                let begin = if contender { Begin::Neighbours(x) } else { Begin::Params(x) };
+                let hopped = fit_family(family, scene, window, begin)?;
                 let evaluations = fit.evaluations + hopped.evaluations;
                 *fit = FamilyFit { evaluations, ..hopped };
             }
             // A profile point that fits better is a better mode along the
             // valley the profile follows: the fit is redone from there.
             let mut jumps = 0;
-            while let Some(x) = widen_to_profiles(&scene.fit, window.0, fit)? {
+            while let Some(x) = if contender { widen_to_profiles(&scene.fit, window.0, fit)? } else { None } {
                 if jumps == PROFILE_JUMPS {
                     break;
                 }
@@ -761,7 +776,6 @@ impl Explainer {
             fit.seconds = seconds + clock.elapsed().as_secs_f64();
         }
         fits.sort_by(|a, b| b.ln_z().total_cmp(&a.ln_z()));
-        let noise_loss = 0.5 * d.iter().map(|v| v * v).sum::<f64>();
         Ok(Explanation { fits, worse_variants, noise_loss, samples: d.len() })
     }
 }
