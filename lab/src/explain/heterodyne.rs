@@ -107,17 +107,12 @@ pub struct WhistleSearch {
     fs: f64,
     buf: Vec<Complex32>,
     scratch: Vec<Complex32>,
-    /// The last scan's per-sample span rotation and what it was for
-    /// (vertex time, half-width, span step, as bits): consecutive scans
-    /// of other wiggles or vertex frequencies reuse it.
-    rotation: ((u64, u64, u64), Vec<Complex32>),
 }
 
 impl WhistleSearch {
     /// A search over windows sampled at `fs` Hz.
     pub fn new(fs: f64) -> WhistleSearch {
-        let rotation = ((0, 0, 0), Vec::new());
-        WhistleSearch { planner: FftPlanner::new(), ffts: HashMap::new(), fs, buf: Vec::new(), scratch: Vec::new(), rotation }
+        WhistleSearch { planner: FftPlanner::new(), ffts: HashMap::new(), fs, buf: Vec::new(), scratch: Vec::new() }
     }
 
     /// The forward FFT of length `len`, planned once.
@@ -160,6 +155,7 @@ impl WhistleSearch {
         // the rotation e^{−2πiτ step u²/3} that moves it to the next span
         // (zero past the envelope's stretch, up to the FFT's length).
         let mut product = vec![Complex32::default(); len];
+        let mut rotation = vec![Complex32::new(1.0, 0.0); len];
         let mut norm = 0.0;
         for (j, k) in (first_k..=last_k).enumerate() {
             let tau = k as f64 / self.fs - centre;
@@ -169,21 +165,7 @@ impl WhistleSearch {
             let chirp = -TAU * tau * u * u / 3.0;
             let bend = -TAU * tau * wiggle * u.powi(4) / 5.0;
             product[j] = single(Complex64::from_polar(d[k] * envelope, -TAU * tau * f + chirp * first + bend));
-        }
-        let key = (dt.to_bits(), half.to_bits(), step.to_bits());
-        if count > 1 && (self.rotation.0 != key || self.rotation.1.len() != len) {
-            let rotation = (0..len)
-                .map(|j| {
-                    let tau = (first_k + j) as f64 / self.fs - centre;
-                    let u = tau / half;
-                    if first_k + j <= last_k {
-                        single(Complex64::from_polar(1.0, -TAU * tau * u * u / 3.0 * step))
-                    } else {
-                        Complex32::new(1.0, 0.0)
-                    }
-                })
-                .collect();
-            self.rotation = (key, rotation);
+            rotation[j] = single(Complex64::from_polar(1.0, chirp * step));
         }
         let fft = self.fft(len);
         self.scratch.resize(fft.get_inplace_scratch_len(), Complex32::default());
@@ -193,7 +175,7 @@ impl WhistleSearch {
         let mut out = Vec::with_capacity(count);
         for i in 0..count {
             if i > 0 {
-                product.iter_mut().zip(&self.rotation.1).for_each(|(p, r)| *p *= r);
+                product.iter_mut().zip(&rotation).for_each(|(p, r)| *p *= r);
             }
             self.buf.clear();
             self.buf.extend_from_slice(&product);
