@@ -2,7 +2,7 @@
 //! L-BFGS from the best, a fit's neighbouring modes, and at the end the
 //! Fisher matrix, σ and Laplace evidence.
 
-use super::{interpolate, Decimated, Estimate, Family, FamilyFit, FamilyScenes, FreeParam, Seed, Start};
+use super::{interpolate, Decimated, Estimate, Family, FamilyFit, FamilyScenes, FreeParam, Seed, Start, LOW_SEARCH_F0};
 use gwml_runtime::fit::{
     bic, fit_run, invert_fisher, laplace_evidence, minimize, newton_polish, Algorithm, Minimum, NewtonSettings, Score, Settings, Stop,
 };
@@ -66,8 +66,9 @@ fn loss_and_grad(run: &mut Run, free: &[FreeParam], x: &[f64]) -> Result<(f64, V
 pub(super) enum Begin<'a> {
     /// From its starts for a seed and `more` (built on another family's
     /// fit), ranked together, and the best of `besides` (built on another's,
-    /// ranked apart).
-    Search { seed: &'a Seed, more: Vec<Start>, besides: Vec<Start> },
+    /// ranked apart); at the rate of `scenes.search` on the window `low`
+    /// (and its rate) where the starts allow ([`Family::low_search`]).
+    Search { seed: &'a Seed, more: Vec<Start>, besides: Vec<Start>, low: Option<(&'a Decimated, f64)> },
     /// From a fit's params (`dt`, `snr`, `phi`, shape): the family's
     /// neighbouring modes are tried, and the best is kept.
     Neighbours(Vec<f64>),
@@ -128,27 +129,43 @@ pub(super) fn fit_family(
     let hops = if matches!(begin, Begin::Neighbours(_)) { NEIGHBOUR_ROUNDS } else { 0 };
     // The fit's mode, and the other modes known (from the neighbours).
     let (mut best, rivals) = match begin {
-        Begin::Search { seed, more, besides } => {
+        Begin::Search { seed, more, besides, low } => {
             // 1. Starting points, each with the amplitude and phase that best match the data.
             let mut starts = (family.starts)(seed);
             starts.extend(more);
-            let mut ranked = rank_starts(&mut run, &free, starts, &inside, &mut evaluations)?;
+            // At a lower rate where every start's centre frequency allows.
+            let below = |starts: &[Start]| starts.iter().all(|(_, x)| x.first().is_some_and(|f| inside(3, *f) <= LOW_SEARCH_F0));
+            let lower = match (&scenes.search, low) {
+                (Some((scene, _)), Some((window, rate))) if below(&starts) && below(&besides) => Some((bind(scene, window)?, window, rate)),
+                _ => None,
+            };
+            let (search, d, rate) = match lower {
+                Some((run, window, rate)) => (Some(run), &window.d, rate),
+                None => (None, d, rate),
+            };
+            let mut search = search;
+            let searching = search.as_mut().unwrap_or(&mut run);
+            let mut ranked = rank_starts(searching, &free, starts, &inside, &mut evaluations)?;
             if let Some(from_data) = family.data_starts {
-                ranked.extend(rank_starts(&mut run, &free, from_data(d, rate, seed), &measured, &mut evaluations)?);
+                ranked.extend(rank_starts(searching, &free, from_data(d, rate, seed), &measured, &mut evaluations)?);
                 ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
             }
-            let apart = rank_starts(&mut run, &free, besides, &inside, &mut evaluations)?;
+            let apart = rank_starts(searching, &free, besides, &inside, &mut evaluations)?;
             // 2. L-BFGS from the best starts.
             let mut best: Option<Minimum> = None;
             for (_, x0) in ranked.iter().take(family.refined).chain(apart.first()) {
-                let m = refine(&mut run, x0, &mut evaluations)?;
+                let m = refine(searching, x0, &mut evaluations)?;
                 best = Some(match best {
                     Some(b) => better(b, m),
                     None => m,
                 });
             }
-            let best = best
+            let mut best = best
                 .ok_or_else(|| Error::Bind(format!("no starting point of the `{}` fit has a finite match with the data", family.scene)))?;
+            // The lower rate's best, refined at the family's.
+            if search.is_some() {
+                best = refine(&mut run, &best.x, &mut evaluations)?;
+            }
             (best, Vec::new())
         }
         Begin::Neighbours(x) | Begin::Params(x) => {

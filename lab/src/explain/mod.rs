@@ -25,7 +25,10 @@
 //!
 //! A family whose templates stay at low frequencies runs all three at a
 //! fraction of the data's rate, with the full window's likelihood
-//! ([`Family::top`], `rates.rs`).
+//! ([`Family::top`], `rates.rs`); a blip's and a Koi Fish's run the first
+//! two at half the rate where every start sits below [`LOW_SEARCH_F0`],
+//! then refine the best once more at the full rate
+//! ([`Family::low_search`]).
 
 mod campaign;
 mod causes;
@@ -141,6 +144,11 @@ pub struct Family {
     /// within the bounds: the fit runs at the lowest rate whose Nyquist
     /// frequency is above it ([`factor_for`]).
     pub top: f64,
+    /// Whether its search (starts ranked and refined) runs at the rate of
+    /// [`SEARCH_TOP`] when every start's centre frequency, its first shape
+    /// param, is at most [`LOW_SEARCH_F0`]; the best is then refined again
+    /// and finished (Fisher matrix, evidence, model) at the family's rate.
+    low_search: bool,
 }
 
 impl Family {
@@ -176,11 +184,24 @@ const PLAIN: Family = Family {
     refined: STARTS_REFINED,
     profiled: &[],
     top: f64::INFINITY,
+    low_search: false,
 };
+
+/// The Nyquist frequency (Hz) a search at a lower rate keeps at least
+/// ([`Family::low_search`]).
+pub const SEARCH_TOP: f64 = 1000.0;
+
+/// The highest centre frequency (Hz) of a search at the rate of
+/// [`SEARCH_TOP`]. Whitened by the O3 ASD (`lab/data/o3_asd.csv`), a burst
+/// at 300 Hz keeps at most 0.55 % of its energy above 1024 Hz over Q ≥ 1,
+/// asym 0.4-3 and drift ±0.5 (the worst corner, Q 1), 0.08 % at 200 Hz
+/// (`scripts/burst_energy_above.py`): a mode found below is the same mode
+/// at the full rate, where the fit refines it again.
+pub const LOW_SEARCH_F0: f64 = 300.0;
 
 /// Every candidate, in the order of `explain.gw`.
 pub const FAMILIES: [Family; 9] = [
-    Family { scene: "blip", label: "Blip", starts: blip_starts, profiled: &["f0", "q"], ..PLAIN },
+    Family { scene: "blip", label: "Blip", starts: blip_starts, profiled: &["f0", "q"], low_search: true, ..PLAIN },
     Family {
         scene: "koi_fish",
         label: "Koi Fish",
@@ -188,6 +209,7 @@ pub const FAMILIES: [Family; 9] = [
         after: Some(("tomte", koi_fish_from_head)),
         besides: Some(("blip", koi_fish_from_blip)),
         profiled: &["f0", "q"],
+        low_search: true,
         ..PLAIN
     },
     Family {
@@ -538,6 +560,9 @@ pub(super) struct FamilyScenes {
     /// Every output: `model`, the fitted shape, for the report and the
     /// Gauss–Newton Fisher matrix.
     pub(super) shape: Scene,
+    /// `fit` at a lower rate and its divisor, for a family whose search
+    /// may run there ([`Family::low_search`]).
+    pub(super) search: Option<(Scene, usize)>,
 }
 
 /// The outputs a fit evaluates (see [`FamilyScenes::fit`]).
@@ -654,8 +679,7 @@ impl Explainer {
             )));
         }
         let model = Model::from_source("lab/models/glitch/explain.gw", EXPLAIN_SOURCE)?;
-        let compile = |family: &Family| {
-            let factor = factor_for(o.sample_rate, samples, family.top);
+        let compile_at = |family: &Family, factor: usize, outputs: Option<Vec<String>>| {
             let rate = o.sample_rate / factor as f64;
             let knobs = [
                 ("sample_rate", format!("{rate:?} Hz")),
@@ -669,11 +693,20 @@ impl Explainer {
             let options = Options {
                 math: Some(MathMode::Fast),
                 knobs: knobs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
+                outputs,
                 ..Options::default()
             };
-            let fit = Options { outputs: Some(FIT_OUTPUTS.map(String::from).to_vec()), ..options.clone() };
-            let scenes =
-                FamilyScenes { fit: model.scene_with(Some(family.scene), fit)?, shape: model.scene_with(Some(family.scene), options)? };
+            model.scene_with(Some(family.scene), options)
+        };
+        let fit_outputs = || Some(FIT_OUTPUTS.map(String::from).to_vec());
+        let compile = |family: &Family| {
+            let factor = factor_for(o.sample_rate, samples, family.top);
+            let low = factor_for(o.sample_rate, samples, SEARCH_TOP.min(family.top));
+            let search = match family.low_search && low > factor {
+                true => Some((compile_at(family, low, fit_outputs())?, low)),
+                false => None,
+            };
+            let scenes = FamilyScenes { fit: compile_at(family, factor, fit_outputs())?, shape: compile_at(family, factor, None)?, search };
             Ok((*family, scenes, factor))
         };
         let scenes = FAMILIES.iter().map(compile).collect::<Result<_, Error>>()?;
@@ -695,7 +728,8 @@ impl Explainer {
             return Err(Error::Bind(format!("the whitened window has a non-finite sample at index {i}")));
         }
         let mut rates: Vec<Decimated> = Vec::new();
-        for &(_, _, factor) in &self.scenes {
+        let searched = self.scenes.iter().filter_map(|(_, s, _)| s.search.as_ref().map(|(_, factor)| *factor));
+        for factor in self.scenes.iter().map(|(_, _, factor)| *factor).chain(searched) {
             if rates.iter().all(|r| r.factor != factor) {
                 rates.push(decimate(d, psd, factor));
             }
@@ -722,7 +756,8 @@ impl Explainer {
                     continue;
                 }
                 let window = (at(*factor), self.sample_rate / *factor as f64);
-                let begin = Begin::Search { seed, more, besides: built(family.besides) };
+                let low = scene.search.as_ref().map(|(_, factor)| (at(*factor), self.sample_rate / *factor as f64));
+                let begin = Begin::Search { seed, more, besides: built(family.besides), low };
                 let mut fit = fit_family(family, scene, window, begin)?;
                 fit.seconds = clock.elapsed().as_secs_f64();
                 fits.push(fit);
@@ -831,6 +866,63 @@ mod tests {
             assert!((shape[1] - 0.25 * (1.0 + r)).abs() < 1e-15, "{shape:?}");
         }
         assert!(scattered_light_neighbours(&(0.0, vec![40.0, 0.25])).is_empty());
+    }
+
+    /// A blip and a Koi Fish whose starts sit below [`LOW_SEARCH_F0`] are
+    /// searched at half the rate. On blips the blip fit ends where the
+    /// full-rate search ends (loss to 0.05, params to a quarter of their σ;
+    /// the drift, in a flat valley, moves by a tenth), and the Koi Fish fit
+    /// no worse (it has other modes: at 180 Hz the half-rate path found
+    /// one 0.3 lower).
+    #[test]
+    fn a_search_at_half_the_rate_ends_where_the_full_rate_search_does() {
+        use super::test_support::at_snr_in_white_noise;
+        let (fs, n) = (4096.0, 8192);
+        let o = ExplainOptions { sample_rate: fs, window: 2.0, band: (20.0, 2000.0) };
+        let low = Explainer::new(&o).unwrap();
+        let mut full = Explainer::new(&o).unwrap();
+        for (family, scenes, factor) in &mut full.scenes {
+            assert_eq!(scenes.search.as_ref().map(|(_, f)| *f), family.low_search.then_some(2 * *factor), "{}", family.scene);
+            scenes.search = None;
+        }
+        // Blips at 120 and 180 Hz (Q 3 and 1.5, the second's decay half its rise).
+        for (seed, f0, q, asym) in [(1, 120.0, 3.0, 1.0), (2, 180.0, 1.5, 0.5)] {
+            let tau = q / (std::f64::consts::SQRT_2 * std::f64::consts::PI * f0);
+            let h: Vec<f64> = (0..n)
+                .map(|k| {
+                    let dt = k as f64 / fs - 1.01;
+                    let u = dt / if dt < 0.0 { tau } else { asym * tau };
+                    (-u * u).exp() * (std::f64::consts::TAU * f0 * dt + 0.7).cos()
+                })
+                .collect();
+            let d = at_snr_in_white_noise(&h, 25.0, seed);
+            let psd = vec![1.0; n / 2 + 1];
+            let win = Window { gps_centre: 1.0, gps_start: 0.0, offset: 0, sample_rate: fs, d: d.clone(), psd: psd.clone() };
+            let start = seed_of(&win, fs, o.band).unwrap();
+            let fit = |e: &Explainer, scene: &str| {
+                let x = e.explain(&d, &psd, &start).unwrap();
+                x.fits.into_iter().chain(x.worse_variants).find(|f| f.family.scene == scene).unwrap()
+            };
+            for scene in ["blip", "koi_fish"] {
+                let (a, b) = (fit(&low, scene), fit(&full, scene));
+                let worse = a.score.loss - b.score.loss;
+                let (low_loss, full_loss) = (a.score.loss, b.score.loss);
+                assert!(worse < 0.05, "{scene} at {f0} Hz: loss {low_loss} searched low, {full_loss} at full rate");
+                if scene == "blip" {
+                    assert!(worse > -0.05, "blip at {f0} Hz: loss {low_loss} searched low, {full_loss} at full rate");
+                    for (p, q) in a.params.iter().zip(&b.params).filter(|(p, _)| p.name != "phi") {
+                        let sigma = q.sigma.expect("a blip at SNR 25 has σ");
+                        assert!(
+                            (p.value - q.value).abs() < 0.25 * sigma,
+                            "{} at {f0} Hz: {} against {} ± {sigma}",
+                            p.name,
+                            p.value,
+                            q.value
+                        );
+                    }
+                }
+            }
+        }
     }
 
     /// A 1.4 + 1.4 M☉ binary spends ~17 minutes above 10 Hz at leading
