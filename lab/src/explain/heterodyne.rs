@@ -164,8 +164,8 @@ impl WhistleSearch {
             norm += envelope * envelope;
             let chirp = -TAU * tau * u * u / 3.0;
             let bend = -TAU * tau * wiggle * u.powi(4) / 5.0;
-            product[j] = single(Complex64::from_polar(d[k] * envelope, -TAU * tau * f + chirp * first + bend));
-            rotation[j] = single(Complex64::from_polar(1.0, chirp * step));
+            product[j] = single_cis(d[k] * envelope, -TAU * tau * f + chirp * first + bend);
+            rotation[j] = single_cis(1.0, chirp * step);
         }
         let fft = self.fft(len);
         self.scratch.resize(fft.get_inplace_scratch_len(), Complex32::default());
@@ -201,10 +201,15 @@ impl WhistleSearch {
     }
 }
 
-/// `z` in single precision, what the whistle search transforms in: its
-/// matches rank shapes, and f32 FFTs take half the time of f64's.
-fn single(z: Complex64) -> Complex32 {
-    Complex32::new(z.re as f32, z.im as f32)
+/// `r e^{iφ}` in single precision, what the whistle search transforms in
+/// (its matches rank shapes, and f32 FFTs take half the time of f64's):
+/// φ reduced to ±π in double precision (a whistle's phases reach 10⁴
+/// rad), its sine and cosine taken in single.
+fn single_cis(r: f64, phi: f64) -> Complex32 {
+    let reduced = (phi - TAU * (phi / TAU).round()) as f32;
+    let (sin, cos) = reduced.sin_cos();
+    let r = r as f32;
+    Complex32::new(r * cos, r * sin)
 }
 
 /// The least `2^a 3^b ≥ n`: lengths rustfft transforms fastest.
