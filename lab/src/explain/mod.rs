@@ -189,7 +189,7 @@ const PLAIN: Family = Family {
 };
 
 /// The Nyquist frequency (Hz) a search at a lower rate keeps at least
-/// ([`Family::low_search`]).
+/// (`Family::low_search`).
 pub const SEARCH_TOP: f64 = 1000.0;
 
 /// The highest centre frequency (Hz) of a search at the rate of
