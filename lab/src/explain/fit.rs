@@ -135,15 +135,12 @@ pub(super) fn fit_family(
             starts.extend(more);
             // At a lower rate where every start's centre frequency allows.
             let below = |starts: &[Start]| starts.iter().all(|(_, x)| x.first().is_some_and(|f| inside(3, *f) <= LOW_SEARCH_F0));
-            let lower = match (&scenes.search, low) {
-                (Some((scene, _)), Some((window, rate))) if below(&starts) && below(&besides) => Some((bind(scene, window)?, window, rate)),
-                _ => None,
+            let (mut search, d, rate) = match (&scenes.search, low) {
+                (Some((scene, _)), Some((window, rate))) if below(&starts) && below(&besides) => {
+                    (Some(bind(scene, window)?), &window.d, rate)
+                }
+                _ => (None, d, rate),
             };
-            let (search, d, rate) = match lower {
-                Some((run, window, rate)) => (Some(run), &window.d, rate),
-                None => (None, d, rate),
-            };
-            let mut search = search;
             let searching = search.as_mut().unwrap_or(&mut run);
             let mut ranked = rank_starts(searching, &free, starts, &inside, &mut evaluations)?;
             if let Some(from_data) = family.data_starts {

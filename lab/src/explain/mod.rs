@@ -635,7 +635,11 @@ impl Explainer {
                 rates.push(decimate(d, psd, factor));
             }
         }
-        let at = |factor: usize| rates.iter().find(|r| r.factor == factor).expect("every factor decimated");
+        // The window at `1 / factor` of the rate, and that rate.
+        let at = |factor: usize| {
+            let window = rates.iter().find(|r| r.factor == factor).expect("every factor decimated");
+            (window, self.sample_rate / factor as f64)
+        };
         let mut fits: Vec<FamilyFit> = Vec::with_capacity(self.scenes.len());
         // Families that build on another's fit go after the others.
         for building in [false, true] {
@@ -656,8 +660,8 @@ impl Explainer {
                 if family.variant_of.is_some() && (nothing_left || not_contested) {
                     continue;
                 }
-                let window = (at(*factor), self.sample_rate / *factor as f64);
-                let low = scene.search.as_ref().map(|(_, factor)| (at(*factor), self.sample_rate / *factor as f64));
+                let window = at(*factor);
+                let low = scene.search.as_ref().map(|(_, factor)| at(*factor));
                 let begin = Begin::Search { seed, more, besides: built(family.besides), low };
                 let mut fit = fit_family(family, scene, window, begin)?;
                 fit.seconds = clock.elapsed().as_secs_f64();
@@ -687,7 +691,7 @@ impl Explainer {
             let contender = contends(fit);
             let clock = Instant::now();
             let (family, scene, factor) = self.scenes.iter().find(|(f, ..)| f.scene == fit.family.scene).expect("a compiled family");
-            let window = (at(*factor), self.sample_rate / *factor as f64);
+            let window = at(*factor);
             let seconds = fit.seconds;
             // Refitted from its params: polished, and its neighbours tried.
             if !fit.polished || (contender && family.neighbours.is_some()) {
