@@ -82,13 +82,27 @@ pub(crate) struct Buffers {
     /// Which kernel's tables and inputs the buffers hold (but inputs the
     /// caller says are stale), or `None`: buffers are refilled only then.
     filled_for: Option<KernelKey>,
+    /// The caller's count of data bindings when the inputs were last
+    /// filled: an input bound (or computed) after it is stale.
+    filled_at: u64,
     scalars: Vec<f64>,
 }
 
 impl Buffers {
+    /// Whether these buffers were allocated for `kernel`.
+    pub(crate) fn holds(&self, kernel: &Kernel) -> bool {
+        self.allocated_for == Some(KernelKey::of(kernel))
+    }
+
+    /// The caller's binding count at the last fill (see [`Buffers::call`]).
+    pub(crate) fn filled_at(&self) -> u64 {
+        self.filled_at
+    }
+
     /// Calls `kernel` (compiled from `func`) with `params` (base units),
     /// after filling the buffers of inputs `stale(i)` names (every input
-    /// and table after a change of kernel) from `data(i)`.
+    /// and table after a change of kernel) from `data(i)`; `bindings` is
+    /// the caller's count of data bindings, kept as [`Buffers::filled_at`].
     pub(crate) fn call<'d>(
         &mut self,
         kernel: &Kernel,
@@ -96,6 +110,7 @@ impl Buffers {
         params: &[f64],
         data: &dyn Fn(usize) -> Result<&'d [C64], Error>,
         stale: &dyn Fn(usize) -> bool,
+        bindings: u64,
     ) -> Result<(), Error> {
         let layout = &kernel.layout;
         let floats = |b: &gwml_compiler::codegen::BufferInfo| b.len * if b.complex { 2 } else { 1 };
@@ -116,6 +131,7 @@ impl Buffers {
             }
         }
         self.filled_for = Some(KernelKey::of(kernel));
+        self.filled_at = bindings;
         self.scalars.clear();
         self.scalars.resize(layout.scalar_slots, 0.0);
         let ptrs: Vec<*mut u8> = self.scratch.iter_mut().map(|(_, b)| b.ptr()).collect();

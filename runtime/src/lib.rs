@@ -222,10 +222,10 @@ impl Scene {
         Run {
             scene: self,
             params: f.params.iter().map(|p| p.default).collect(),
-            stale: vec![false; inputs.len()],
-            prelude_stale: vec![false; inputs.len()],
+            bound_at: vec![0; inputs.len()],
+            bindings: 0,
             inputs,
-            main: Buffers::default(),
+            main: Vec::new(),
             prelude: Buffers::default(),
             caches: Vec::new(),
             prelude_runs: 0,
@@ -309,11 +309,15 @@ pub struct Run<'s> {
     params: Vec<Option<f64>>,
     /// The data of every input callers bind (cached inputs come after them).
     inputs: Vec<Option<Vec<C64>>>,
-    /// Per input, whether it was bound since the main kernel's buffers were filled.
-    stale: Vec<bool>,
-    /// Per input, whether it was bound since the prelude's buffers were filled.
-    prelude_stale: Vec<bool>,
-    main: Buffers,
+    /// Per input, the count of bindings (`bindings`) when it was last
+    /// bound: buffers filled before then hold stale data.
+    bound_at: Vec<u64>,
+    /// How many times data were bound to this run.
+    bindings: u64,
+    /// The buffers of each main kernel run so far (forward, gradient),
+    /// kept apart so a fit that alternates the two neither reallocates
+    /// nor refills them.
+    main: Vec<Buffers>,
     prelude: Buffers,
     /// Per prelude kernel (forward, gradient) run since data were last
     /// bound: its outputs, the main kernel's cached inputs in order.
@@ -426,8 +430,8 @@ impl<'s> Run<'s> {
     /// Input `i` changed: the main kernel and the prelude refill it, and
     /// values computed from the data are stale.
     fn mark_bound(&mut self, i: usize) {
-        self.stale[i] = true;
-        self.prelude_stale[i] = true;
+        self.bindings += 1;
+        self.bound_at[i] = self.bindings;
         self.caches.clear();
     }
 
@@ -501,9 +505,8 @@ impl<'s> Run<'s> {
         if let Some(k) = self.caches.iter().position(|c| c.0 == KernelKey::of(kernel)) {
             return Ok(Some((k, false)));
         }
-        let (inputs, stale) = (&self.inputs, &self.prelude_stale);
-        self.prelude.call(kernel, func, params, &|i| Self::data(inputs, &[], func, i), &|i| stale[i])?;
-        self.prelude_stale.iter_mut().for_each(|s| *s = false);
+        let (inputs, bound_at, since) = (&self.inputs, &self.bound_at, self.prelude.filled_at());
+        self.prelude.call(kernel, func, params, &|i| Self::data(inputs, &[], func, i), &|i| bound_at[i] > since, self.bindings)?;
         let mut cache = Vec::with_capacity(func.outputs.len());
         for oi in 0..func.outputs.len() {
             let v = self.prelude.output(kernel, func, oi);
@@ -534,19 +537,30 @@ impl<'s> Run<'s> {
             params.push(v * p.scale);
         }
         let prelude = self.run_prelude(compiled, &params)?;
-        let recomputed = prelude.is_some_and(|p| p.1);
         let n_bound = self.inputs.len();
+        let slot = match self.main.iter().position(|b| b.holds(kernel)) {
+            Some(slot) => slot,
+            None => {
+                self.main.push(Buffers::default());
+                self.main.len() - 1
+            }
+        };
+        let main = &mut self.main[slot];
+        let since = main.filled_at();
+        // The prelude's outputs are computed only after a binding, so
+        // buffers filled at the current count already hold them.
+        let recomputed = prelude.is_some_and(|p| p.1) || self.bindings > since;
         let cache: &[Vec<C64>] = prelude.map_or(&[], |p| &self.caches[p.0].1);
-        let (inputs, stale) = (&self.inputs, &self.stale);
-        let stale = |i: usize| if i < n_bound { stale[i] } else { recomputed };
-        self.main.call(kernel, func, &params, &|i| Self::data(inputs, cache, func, i), &stale)?;
-        self.stale.iter_mut().for_each(|s| *s = false);
+        let (inputs, bound_at) = (&self.inputs, &self.bound_at);
+        let stale = |i: usize| if i < n_bound { bound_at[i] > since } else { recomputed };
+        main.call(kernel, func, &params, &|i| Self::data(inputs, cache, func, i), &stale, self.bindings)?;
+        let main = &self.main[slot];
         let values: Vec<(String, Value)> =
-            (0..func.outputs.len()).map(|oi| (func.outputs[oi].name.clone(), self.main.output(kernel, func, oi))).collect();
+            (0..func.outputs.len()).map(|oi| (func.outputs[oi].name.clone(), main.output(kernel, func, oi))).collect();
         let mut grads = Vec::new();
         for g in &func.grads {
             let Some(v) = g.value else { continue };
-            let Value::Real(x) = self.main.scalar(kernel, v) else {
+            let Value::Real(x) = main.scalar(kernel, v) else {
                 continue;
             };
             let p = &func.params[g.param];
@@ -558,8 +572,8 @@ impl<'s> Run<'s> {
             let Some(v) = g.value else { continue };
             let scale = func.inputs[g.input].scale;
             let data = match buffer {
-                Some(k) => self.main.scratch[*k].1.real(layout.buffers[*k].len, scale),
-                None => match self.main.scalar(kernel, v) {
+                Some(k) => main.scratch[*k].1.real(layout.buffers[*k].len, scale),
+                None => match main.scalar(kernel, v) {
                     Value::Real(x) => vec![x * scale],
                     _ => continue,
                 },
