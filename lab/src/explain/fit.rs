@@ -338,7 +338,7 @@ pub(super) fn widen_to_profiles(scene: &Scene, window: &Decimated, fit: &mut Fam
             Ok((loss, grad))
         };
         let along = fit.covariance.as_ref().map(|c| c.iter().map(|row| row[i] / c[i][i]).collect());
-        let profile = profile_sigma(fixed, (&x, loss), (i, along), sigma, (&bounds, p.2), &settings)?;
+        let profile = profile_sigma(fixed, (&x, loss), (i, along), sigma, (&bounds, p.2), &settings, fit.family.ridge)?;
         fit.params[i].sigma = Some(profile.sigma);
         fit.evaluations += profile.evaluations;
         if let Some((lower, at)) = profile.best.filter(|(lower, _)| *lower < loss - PROFILE_JUMP) {
@@ -370,7 +370,9 @@ struct Profile {
 /// makes its distance σ). Never narrowed; a side beyond a bound is
 /// skipped. Each profile fit starts from `x` moved along `along` (per
 /// unit of param `i`; `C_{ji}/C_{ii}` puts the others where a Gaussian
-/// likelihood's profile has them), kept inside their bounds.
+/// likelihood's profile has them), kept inside their bounds; where the
+/// family knows a ridge the likelihood follows ([`super::Ridge`]), a second
+/// fit starts on it and the lower of the two is the profile's.
 fn profile_sigma(
     mut fixed: impl FnMut(&[f64]) -> Result<(f64, Vec<f64>), Error>,
     (x, loss): (&[f64], f64),
@@ -378,6 +380,7 @@ fn profile_sigma(
     sigma: f64,
     (bounds, range): (&[Range], Range),
     settings: &Settings,
+    ridge: Option<super::Ridge>,
 ) -> Result<Profile, Error> {
     let (mut wider, mut evaluations) = (sigma, 0);
     let mut best: Option<(f64, Vec<f64>)> = None;
@@ -390,13 +393,23 @@ fn profile_sigma(
         let mut start = x.to_vec();
         for (j, v) in start.iter_mut().enumerate().filter(|(j, _)| *j != i) {
             *v += along.as_ref().map_or(0.0, |a| step * a[j]);
-            if let Some((lo, hi)) = bounds[j] {
-                *v = v.clamp(lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo));
-            }
         }
         start[i] = x[i] + step;
-        let m = minimize(&mut fixed, &start, bounds, settings, |_| {})?;
-        evaluations += m.evaluations;
+        let on_ridge = ridge.and_then(|r| r(x, i, x[i] + step));
+        let mut m: Option<Minimum> = None;
+        for mut start in std::iter::once(start).chain(on_ridge) {
+            for (j, v) in start.iter_mut().enumerate().filter(|(j, _)| *j != i) {
+                if let Some((lo, hi)) = bounds[j] {
+                    *v = v.clamp(lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo));
+                }
+            }
+            let fitted = minimize(&mut fixed, &start, bounds, settings, |_| {})?;
+            evaluations += fitted.evaluations;
+            if m.as_ref().is_none_or(|b| fitted.loss < b.loss) {
+                m = Some(fitted);
+            }
+        }
+        let m = m.expect("one profile fit a side");
         let rise = (m.loss - loss).max(0.5);
         if rise.is_finite() {
             wider = wider.max(PROFILE_AT * sigma / (2.0 * rise).sqrt());
@@ -515,21 +528,21 @@ mod tests {
         let settings = Settings::new(Algorithm::Lbfgs);
         let free = [None, None];
         let Profile { sigma, evaluations: used, .. } =
-            profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings).unwrap();
+            profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings, None).unwrap();
         assert!((sigma - 3.0 / 4.5f64.sqrt()).abs() < 1e-6, "σ {sigma}");
         assert!(used > 0);
         // Started where the Gaussian profile has y (x/2), the fits need fewer steps.
         let Profile { sigma: same, evaluations: fewer, .. } =
-            profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, Some(vec![1.0, 0.5])), 1.0, (&free, None), &settings).unwrap();
+            profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, Some(vec![1.0, 0.5])), 1.0, (&free, None), &settings, None).unwrap();
         assert!((same - sigma).abs() < 1e-9 && fewer < used, "σ {same}, {fewer} evaluations against {used}");
         // A quartic rises faster than a Gaussian: σ stays.
         let steep =
             |v: &[f64]| -> Result<(f64, Vec<f64>), Error> { Ok((0.5 * v[0] * v[0] + v[0].powi(4) + 0.5 * v[1] * v[1], vec![0.0, v[1]])) };
-        assert_eq!(profile_sigma(steep, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings).unwrap().sigma, 1.0);
+        assert_eq!(profile_sigma(steep, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings, None).unwrap().sigma, 1.0);
         // A side beyond the param's bounds is skipped: only +3 is taken.
-        let one_side = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, Some((-2.0, 10.0))), &settings).unwrap().sigma;
+        let one_side = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, Some((-2.0, 10.0))), &settings, None).unwrap().sigma;
         assert!((one_side - 3.0 / 4.5f64.sqrt()).abs() < 1e-6, "σ {one_side}");
-        let none = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, Some((-2.0, 2.0))), &settings).unwrap();
+        let none = profile_sigma(flat, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, Some((-2.0, 2.0))), &settings, None).unwrap();
         assert_eq!((none.sigma, none.evaluations), (1.0, 0));
         assert!(none.best.is_none());
     }
@@ -551,13 +564,13 @@ mod tests {
         };
         let settings = Settings::new(Algorithm::Lbfgs);
         let free = [None, None];
-        let p = profile_sigma(two_wells, (&[0.0, 0.0], -1.0), (0, None), 1.0, (&free, None), &settings).unwrap();
+        let p = profile_sigma(two_wells, (&[0.0, 0.0], -1.0), (0, None), 1.0, (&free, None), &settings, None).unwrap();
         let (loss, x) = p.best.expect("a profile point");
         assert!(loss < -1.0 - PROFILE_JUMP, "the profile at +3 should lie below the estimate's -1: {loss}");
         assert!((x[0] - 3.0).abs() < 1e-12 && (x[1] - 0.75).abs() < 1e-6, "{x:?}");
         // A single well: both points lie above the estimate.
         let one_well = |v: &[f64]| -> Result<(f64, Vec<f64>), Error> { Ok((0.5 * v[0] * v[0] + 0.5 * v[1] * v[1], vec![0.0, v[1]])) };
-        let (loss, _) = profile_sigma(one_well, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings).unwrap().best.unwrap();
+        let (loss, _) = profile_sigma(one_well, (&[0.0, 0.0], 0.0), (0, None), 1.0, (&free, None), &settings, None).unwrap().best.unwrap();
         assert!((loss - 4.5).abs() < 1e-9, "{loss}");
     }
 
