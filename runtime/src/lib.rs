@@ -498,12 +498,11 @@ impl<'s> Run<'s> {
     }
 
     /// Runs `compiled.prelude` unless its outputs for the bound data are
-    /// kept; returns the index of those outputs in `caches` and whether
-    /// they were just computed.
-    fn run_prelude(&mut self, compiled: &Compiled, params: &[f64]) -> Result<Option<(usize, bool)>, Error> {
+    /// kept; returns the index of those outputs in `caches`.
+    fn run_prelude(&mut self, compiled: &Compiled, params: &[f64]) -> Result<Option<usize>, Error> {
         let Some((func, kernel)) = &compiled.prelude else { return Ok(None) };
         if let Some(k) = self.caches.iter().position(|c| c.0 == KernelKey::of(kernel)) {
-            return Ok(Some((k, false)));
+            return Ok(Some(k));
         }
         let (inputs, bound_at, since) = (&self.inputs, &self.bound_at, self.prelude.filled_at());
         self.prelude.call(kernel, func, params, &|i| Self::data(inputs, &[], func, i), &|i| bound_at[i] > since, self.bindings)?;
@@ -521,7 +520,7 @@ impl<'s> Run<'s> {
         }
         self.caches.push((KernelKey::of(kernel), cache));
         self.prelude_runs += 1;
-        Ok(Some((self.caches.len() - 1, true)))
+        Ok(Some(self.caches.len() - 1))
     }
 
     fn execute(&mut self, compiled: &Compiled) -> Result<Outputs, Error> {
@@ -547,10 +546,11 @@ impl<'s> Run<'s> {
         };
         let main = &mut self.main[slot];
         let since = main.filled_at();
-        // The prelude's outputs are computed only after a binding, so
-        // buffers filled at the current count already hold them.
-        let recomputed = prelude.is_some_and(|p| p.1) || self.bindings > since;
-        let cache: &[Vec<C64>] = prelude.map_or(&[], |p| &self.caches[p.0].1);
+        // The prelude's outputs are recomputed only after a binding (which
+        // clears them), and this kernel's prelude runs before it: buffers
+        // filled at the current count already hold them.
+        let recomputed = self.bindings > since;
+        let cache: &[Vec<C64>] = prelude.map_or(&[], |k| &self.caches[k].1);
         let (inputs, bound_at) = (&self.inputs, &self.bound_at);
         let stale = |i: usize| if i < n_bound { bound_at[i] > since } else { recomputed };
         main.call(kernel, func, &params, &|i| Self::data(inputs, cache, func, i), &stale, self.bindings)?;
